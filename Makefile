@@ -1,0 +1,54 @@
+# skidsim: the two commands of the README are `make reproduce` and `make test`.
+# Both create (or reuse) a local virtual environment in .venv with the pinned dependencies.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+CORES ?= 2
+STAMP := $(VENV)/.skidsim-installed
+TEST_STAMP := $(VENV)/.skidsim-test-installed
+
+.PHONY: reproduce test setup setup-test system-deps report dryrun clean-results benchmarks
+
+$(STAMP): requirements.lock pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -r requirements.lock
+	$(BIN)/python -m pip install -q --no-deps -e .
+	@touch $@
+
+$(TEST_STAMP): $(STAMP) requirements-test.lock
+	$(BIN)/python -m pip install -q -r requirements-test.lock
+	@touch $@
+
+setup: $(STAMP)
+
+setup-test: $(TEST_STAMP) system-deps
+
+# CalculiX (Debian package calculix-ccx) is the independent FE code the solver is compared with.
+system-deps:
+	@if command -v ccx >/dev/null 2>&1; then echo "ccx: $$(command -v ccx)"; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "installing calculix-ccx (Debian)"; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq calculix-ccx >/dev/null) || echo "WARNING: could not install calculix-ccx"; \
+	else echo "NOTE: CalculiX (ccx) not found and not root: the CalculiX comparison tests will be skipped. Install calculix-ccx."; fi
+
+## Run the whole workflow on the embedded default campaign (or CONFIG=... for another config file).
+reproduce: $(STAMP)
+	$(BIN)/snakemake --cores $(CORES) $(if $(CONFIG),--configfile $(CONFIG),)
+
+## Run the test suite.
+test: setup-test
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q $(PYTEST_ARGS)
+
+dryrun: $(STAMP)
+	$(BIN)/snakemake -n --cores $(CORES)
+
+report: $(STAMP)
+	$(BIN)/snakemake --cores $(CORES) --report report.html
+
+benchmarks: $(STAMP)
+	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+
+clean-results:
+	rm -rf results logs benchmarks/out
