@@ -1,0 +1,32 @@
+# skidsim: in-situ 3D pavement texture + DFT friction -> calibrated explicit FE skid-resistance simulation.
+#
+#   snakemake --cores 2                      # everything on the embedded default campaign (or config `campaign`)
+#   snakemake --cores 2 section_E1           # one section (texture, meshes, calibrations, validation)
+#   snakemake --cores 2 results/sites/E1-1/calibration_ours.json   # one site's output (see docs/workflow.md)
+#   snakemake --cores 2 --configfile config/quick.yaml             # quick look (coarse settings, docs/quick.md)
+from snakemake.utils import min_version
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+report: "workflow/report/workflow.rst"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/campaign.smk"
+include: "workflow/rules/texture.smk"
+include: "workflow/rules/mesh.smk"
+include: "workflow/rules/calibration.smk"
+include: "workflow/rules/regression.smk"
+include: "workflow/rules/diagnosis.smk"
+include: "workflow/rules/targets.smk"
+
+
+rule all:
+    input:
+        all_targets(),
+    default_target: True
+    localrule: True

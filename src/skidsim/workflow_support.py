@@ -1,0 +1,108 @@
+"""Helpers the Snakemake workflow needs at parse time and the scripts share (no Snakemake import).
+
+* :func:`site_table`: the site list (site, section, scan, dft) known when the workflow is parsed.
+* :func:`save_surfaces` / :func:`load_surfaces`: intermediate height maps between rules (``.npz``, mm).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import CampaignError
+from .runlog import atomic_path
+from .surface import Surface
+
+
+def merged(defaults: dict, override: dict | None) -> dict:
+    """Recursive dict merge: ``override`` wins; dicts merge key by key."""
+    out = dict(defaults)
+    for k, v in (override or {}).items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = merged(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def synthetic_config(config: dict) -> dict:
+    """The generator's configuration: its defaults overridden by ``config['synthetic']`` and ``config['truth']``."""
+    from . import synthetic
+
+    cfg = merged(synthetic.default_config(), config.get("synthetic") or {})
+    if "truth" in config:
+        cfg = merged(cfg, {"truth": config["truth"]})
+    return cfg
+
+
+def site_table(config: dict, campaign_dir: str | Path | None) -> pd.DataFrame:
+    """Site ids and sections, known at parse time.
+
+    For the synthetic campaign (``campaign_dir`` None) the design is computed from config (cheap, no surfaces).
+    For a user campaign ``sites.csv`` is read for its ``site``, ``section``, ``scan`` and ``dft`` columns only;
+    everything else is checked by the ``validate_campaign`` rule, which names every problem at once.
+    """
+    if campaign_dir is None:
+        from . import synthetic
+
+        design = synthetic.design_campaign(synthetic_config(config))
+        return pd.DataFrame({"site": design["site"].astype(str), "section": design["section"].astype(str),
+                             "scan": [f"scans/{s}.x3p" for s in design["site"]],
+                             "dft": [f"dft/{s}.csv" for s in design["site"]]})
+    path = Path(campaign_dir) / "sites.csv"
+    if not path.is_file():
+        raise CampaignError(path, "a sites.csv file in the campaign directory (config key 'campaign')",
+                            got="missing")
+    df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    missing = [c for c in ("site", "section", "scan", "dft") if c not in df.columns]
+    if missing:
+        raise CampaignError(path, f"columns {', '.join(missing)} in the header", row=1)
+    if df["site"].duplicated().any():
+        dup = df.loc[df["site"].duplicated(), "site"].iloc[0]
+        row = int(df.index[df["site"] == dup][1]) + 2
+        raise CampaignError(path, "unique site ids", row=row, column="site", got=dup)
+    return df[["site", "section", "scan", "dft"]].copy()
+
+
+def save_surfaces(path: str | Path, surfaces: dict[str, Surface]) -> None:
+    """Store named surfaces (heights in mm, float64) with their spacings in one ``.npz``, atomically."""
+    arrays = {}
+    for name, s in surfaces.items():
+        arrays[f"{name}__heights_mm"] = s.heights
+        arrays[f"{name}__spacing_mm"] = np.array([s.dx, s.dy])
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+
+def load_surfaces(path: str | Path) -> dict[str, Surface]:
+    """Inverse of :func:`save_surfaces`."""
+    out = {}
+    with np.load(path) as z:
+        names = sorted({k.split("__")[0] for k in z.files})
+        for n in names:
+            dx, dy = z[f"{n}__spacing_mm"]
+            out[n] = Surface(z[f"{n}__heights_mm"], float(dx), float(dy), name=n)
+    return out
+
+
+def regression_split(cfg: dict, sites: pd.DataFrame) -> tuple[list[str], list[str]]:
+    """The seeded train/test split of the regression stage, known at parse time.
+
+    ``cfg['n_test']`` sites are held out (the study: 9 of 36); for smaller campaigns the same share,
+    ``round(n * n_test / 36)``, at least 1 when there are 4 sites or more.
+    """
+    from .regression import split_sites
+
+    n = len(sites)
+    n_test = int(cfg.get("n_test", 9))
+    if n != 36:
+        n_test = int(round(n * n_test / 36.0))
+        n_test = max(1, n_test) if n >= 4 else 0
+    if n_test == 0:
+        return list(sites["site"]), []
+    train, test = split_sites(sites, n_train=n - n_test, seed=int(cfg["seed"]),
+                              grouped_by=cfg.get("grouped_by") or None)
+    return [str(s) for s in train], [str(s) for s in test]

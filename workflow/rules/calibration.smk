@@ -1,0 +1,87 @@
+# Back-calculation of (mu_s, mu_k, alpha) per site: the study's nested bisection and our fast method; validation at
+# speeds never used in calibration; the study's Table 2 and Figure 10. FE evaluations are cached per site in
+# results/cache/<site>/ (not a declared output: a failed or repeated run reuses every simulation already done).
+
+
+rule calibrate:
+    """Calibrate one site's friction law with one method (study | ours)."""
+    input:
+        pavement=f"{RESULTS}/sites/{{site}}/pavement.npz",
+        dft=f"{RESULTS}/ingest/dft_points.parquet",
+        traces=f"{RESULTS}/ingest/dft_traces.parquet",
+    output:
+        result=f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json",
+        history=f"{RESULTS}/sites/{{site}}/calibration_{{method}}_history.parquet",
+    params:
+        calibration=config["calibration"],
+        solver=config["solver"],
+        speeds=config["speeds"]["calibration_kmh"],
+        cache=f"{RESULTS}/cache/{{site}}/fe_{{method}}.parquet",
+    log:
+        "logs/calibrate/{site}_{method}.log",
+    benchmark:
+        "benchmarks/out/calibrate/{site}_{method}.tsv"
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=120,
+    script:
+        "../scripts/calibrate.py"
+
+
+rule validate_speeds:
+    """Simulate the site at calibration and validation speeds with each method's parameters."""
+    input:
+        pavement=f"{RESULTS}/sites/{{site}}/pavement.npz",
+        dft=f"{RESULTS}/ingest/dft_points.parquet",
+        calibrations=expand(f"{RESULTS}/sites/{{{{site}}}}/calibration_{{method}}.json", method=METHODS),
+    output:
+        table=f"{RESULTS}/sites/{{site}}/validation.parquet",
+    params:
+        solver=config["solver"],
+        methods=METHODS,
+        calibration_speeds=config["speeds"]["calibration_kmh"],
+        validation_speeds=config["speeds"]["validation_kmh"],
+        cache=f"{RESULTS}/cache/{{site}}/fe_validation.parquet",
+    log:
+        "logs/validate_speeds/{site}.log",
+    benchmark:
+        "benchmarks/out/validate_speeds/{site}.tsv"
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=60,
+    script:
+        "../scripts/validate_speeds.py"
+
+
+rule calibration_summary:
+    """Table 2 (parameters per site), the cost/fit comparison of the two methods, Figure 10."""
+    input:
+        ingest=INGEST,
+        calibrations=expand(f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json", site=SITES, method=METHODS),
+        validations=expand(f"{RESULTS}/sites/{{site}}/validation.parquet", site=SITES),
+        traces=f"{RESULTS}/ingest/dft_traces.parquet",
+    output:
+        table2=report(f"{RESULTS}/calibration/table2.csv", caption="../report/table2.csv.rst",
+                      category="3 Back-calculation"),
+        comparison=report(f"{RESULTS}/calibration/comparison.csv", caption="../report/comparison.rst",
+                          category="3 Back-calculation"),
+        stats=report(f"{RESULTS}/calibration/fit_statistics.csv", caption="../report/fit_statistics.rst",
+                     category="3 Back-calculation"),
+        validation=f"{RESULTS}/calibration/validation.parquet",
+        params=f"{RESULTS}/calibration/parameters.parquet",
+        figure10=report(f"{RESULTS}/calibration/figure10.png", caption="../report/figure10.rst",
+                        category="3 Back-calculation"),
+        curves=report(f"{RESULTS}/calibration/curves.png", caption="../report/curves.rst",
+                      category="3 Back-calculation"),
+    params:
+        methods=METHODS,
+    log:
+        "logs/calibration_summary.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    script:
+        "../scripts/calibration_summary.py"

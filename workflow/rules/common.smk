@@ -1,0 +1,69 @@
+# Site table, input functions, config validation and wildcard constraints shared by every rule file.
+import sys
+from pathlib import Path
+
+import pandas as pd
+from snakemake.utils import validate
+
+sys.path.insert(0, str(Path(workflow.basedir) / "src"))  # the library, also without `pip install -e .`
+
+validate(config, schema="../schemas/config.schema.yaml")
+
+from skidsim.workflow_support import site_table  # noqa: E402
+
+RESULTS = "results"
+SYNTHETIC = not config.get("campaign")
+if SYNTHETIC:
+    CAMPAIGN_DIR = Path(RESULTS) / "campaign"
+else:
+    CAMPAIGN_DIR = Path(config["campaign"])
+SITES_CSV = str(CAMPAIGN_DIR / "sites.csv")
+
+# The site table is known when the workflow is parsed: designed from config for the synthetic campaign, read
+# (lightly: ids and sections) from the user's sites.csv otherwise. The full validation is the rule
+# validate_campaign, on which every analysis rule depends.
+SITE_TABLE = site_table(config, CAMPAIGN_DIR if not SYNTHETIC else None)
+SITES = list(SITE_TABLE["site"])
+SECTIONS = list(dict.fromkeys(SITE_TABLE["section"]))
+SECTION_OF = dict(zip(SITE_TABLE["site"], SITE_TABLE["section"]))
+METHODS = list(config["calibration"]["methods"])
+
+
+wildcard_constraints:
+    site="[A-Za-z0-9][A-Za-z0-9_.-]*",
+    section="[A-Za-z0-9][A-Za-z0-9_.-]*",
+    method="|".join(METHODS),
+
+
+def scan_of(wildcards):
+    """The scan file of a site: from the synthetic generator or from the user's sites.csv."""
+    if SYNTHETIC:
+        return f"{RESULTS}/campaign/scans/{wildcards.site}.x3p"
+    return str(CAMPAIGN_DIR / SITE_TABLE.set_index("site").loc[wildcards.site, "scan"])
+
+
+def dft_of(wildcards):
+    """The DFT trace of a site."""
+    if SYNTHETIC:
+        return f"{RESULTS}/campaign/dft/{wildcards.site}.csv"
+    return str(CAMPAIGN_DIR / SITE_TABLE.set_index("site").loc[wildcards.site, "dft"])
+
+
+def sites_of_section(section):
+    return [s for s in SITES if SECTION_OF[s] == section]
+
+
+def site_outputs(site):
+    """Every per-site product (texture, mesh, calibrations, validation)."""
+    d = f"{RESULTS}/sites/{site}"
+    return [
+        f"{d}/texture.parquet",
+        f"{d}/mpd.json",
+        f"{d}/figure7.png",
+        f"{d}/pavement.npz",
+        f"{d}/fe_model.png",
+        f"{d}/validation.parquet",
+    ] + [f"{d}/calibration_{m}.json" for m in METHODS]
+
+
+INGEST = f"{RESULTS}/ingest/sites.parquet"

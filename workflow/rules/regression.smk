@@ -1,0 +1,79 @@
+# Texture -> friction regression (the study's PCA regression, Tables 5-6), honest cross-validated alternatives, and
+# FE predictions for the held-out sites (Figure 11). The 27/9 split is seeded, so it is known at parse time.
+from skidsim.workflow_support import regression_split
+
+TRAIN_SITES, TEST_SITES = regression_split(config["regression"], SITE_TABLE)
+REG = f"{RESULTS}/regression"
+
+
+rule regression:
+    """PCA regression per friction parameter on the training sites; CV comparison of models by section."""
+    input:
+        wide=f"{RESULTS}/texture/campaign.parquet",
+        params=f"{RESULTS}/calibration/parameters.parquet",
+        validation=f"{RESULTS}/calibration/validation.parquet",
+        dft=f"{RESULTS}/ingest/dft_points.parquet",
+    output:
+        split=f"{REG}/split.json",
+        table5=report(f"{REG}/table5.csv", caption="../report/table5.rst", category="4 Regression"),
+        table6=report(f"{REG}/table6.csv", caption="../report/table6.rst", category="4 Regression"),
+        cv=report(f"{REG}/cv_comparison.csv", caption="../report/cv.rst", category="4 Regression"),
+        cv_figure=report(f"{REG}/cv_comparison.png", caption="../report/cv.rst", category="4 Regression"),
+        table6_figure=report(f"{REG}/table6.png", caption="../report/table6.rst", category="4 Regression"),
+        predictions=f"{REG}/predicted_parameters.csv",
+        model=f"{REG}/model.json",
+    params:
+        cfg=config["regression"],
+        train=TRAIN_SITES,
+        test=TEST_SITES,
+        calibration_method=config["regression"]["calibration_method"],
+    log:
+        "logs/regression.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=20,
+    script:
+        "../scripts/regression.py"
+
+
+rule predict_fe:
+    """FE simulation of a held-out site at 20-70 km/h with friction parameters predicted from its texture."""
+    input:
+        pavement=f"{RESULTS}/sites/{{site}}/pavement.npz",
+        predictions=f"{REG}/predicted_parameters.csv",
+    output:
+        table=f"{REG}/fe/{{site}}.parquet",
+    params:
+        solver=config["solver"],
+        speeds=config["regression"]["prediction_speeds_kmh"],
+        cache=f"{RESULTS}/cache/{{site}}/fe_prediction.parquet",
+    log:
+        "logs/predict_fe/{site}.log",
+    benchmark:
+        "benchmarks/out/predict_fe/{site}.tsv"
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=60,
+    script:
+        "../scripts/predict_fe.py"
+
+
+rule figure11:
+    """Predicted vs measured DFT of the held-out sites at six speeds (study Figure 11) and the error table."""
+    input:
+        tables=expand(f"{REG}/fe/{{site}}.parquet", site=TEST_SITES),
+        dft=f"{RESULTS}/ingest/dft_points.parquet",
+    output:
+        table=report(f"{REG}/figure11_errors.csv", caption="../report/figure11.rst", category="4 Regression"),
+        summary=f"{REG}/figure11_summary.csv",
+        figure=report(f"{REG}/figure11.png", caption="../report/figure11.rst", category="4 Regression"),
+    log:
+        "logs/figure11.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    script:
+        "../scripts/figure11.py"

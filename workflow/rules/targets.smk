@@ -1,0 +1,34 @@
+import re
+
+# Target rules: everything, one section, one site. Section and site rules are generated from the site table:
+#   snakemake --cores 2 section_E1        # the section's sites: texture, meshes, calibrations, validation
+#   snakemake --cores 2 site_E1_1         # one site (characters other than letters, digits, _ become _)
+# File targets work too, e.g. results/sites/E1-1/calibration_ours.json (docs/workflow.md lists them).
+
+
+def all_targets():
+    targets = [f"{RESULTS}/texture/table4.csv", f"{RESULTS}/calibration/figure10.png",
+               f"{RESULTS}/regression/figure11.png", f"{DIAG}/causes.json"]
+    for s in SITES:
+        targets += site_outputs(s)
+    return targets
+
+
+for _section in SECTIONS:
+
+    rule:
+        name:
+            "section_" + re.sub(r"\W", "_", _section)
+        input:
+            [p for s in sites_of_section(_section) for p in site_outputs(s)],
+        localrule: True
+
+
+for _site in SITES:
+
+    rule:
+        name:
+            "site_" + re.sub(r"\W", "_", _site)
+        input:
+            site_outputs(_site),
+        localrule: True

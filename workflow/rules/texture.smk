@@ -1,0 +1,123 @@
+# Texture characterisation, one rule per step and site, then the campaign tables (study Tables 3-4, Figure 7).
+
+
+rule despeckle:
+    """Limiting filter (study) or robust variant on every scan line; invalid points filled."""
+    input:
+        scan=scan_of,
+        ingest=INGEST,
+    output:
+        surfaces=temp(f"{RESULTS}/sites/{{site}}/despeckled.npz"),
+        stats=f"{RESULTS}/sites/{{site}}/despeckle.json",
+    params:
+        cfg=config["texture"]["despeckle"],
+    log:
+        "logs/despeckle/{site}.log",
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=5,
+    script:
+        "../scripts/despeckle.py"
+
+
+rule separate_bands:
+    """Form removal and areal Butterworth separation into raw, macro (0.5-50 mm) and micro (< 0.5 mm) bands."""
+    input:
+        surfaces=rules.despeckle.output.surfaces,
+    output:
+        bands=temp(f"{RESULTS}/sites/{{site}}/bands.npz"),
+    params:
+        cfg=config["texture"]["bands"],
+    log:
+        "logs/separate_bands/{site}.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    script:
+        "../scripts/separate_bands.py"
+
+
+rule mpd:
+    """Mean profile depth per ISO 13473-1:2019 from the scan's profiles, and ETD."""
+    input:
+        surfaces=rules.despeckle.output.surfaces,
+    output:
+        mpd=f"{RESULTS}/sites/{{site}}/mpd.json",
+    params:
+        cfg=config["texture"]["mpd"],
+    log:
+        "logs/mpd/{site}.log",
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=5,
+    script:
+        "../scripts/mpd.py"
+
+
+rule texture_parameters:
+    """The study's Table 3 parameters for raw, macro and micro texture, in long form."""
+    input:
+        bands=rules.separate_bands.output.bands,
+        mpd=rules.mpd.output.mpd,
+    output:
+        table=f"{RESULTS}/sites/{{site}}/texture.parquet",
+    params:
+        cfg=config["texture"]["parameters"],
+    log:
+        "logs/texture_parameters/{site}.log",
+    benchmark:
+        "benchmarks/out/texture_parameters/{site}.tsv"
+    threads: 1
+    resources:
+        mem_mb=2500,
+        runtime=10,
+    script:
+        "../scripts/texture_parameters.py"
+
+
+rule figure7:
+    """Range image, despeckled, macro and micro texture of one site (study Figure 7 a-b)."""
+    input:
+        scan=scan_of,
+        surfaces=rules.despeckle.output.surfaces,
+        bands=rules.separate_bands.output.bands,
+    output:
+        figure=report(
+            f"{RESULTS}/sites/{{site}}/figure7.png",
+            caption="../report/figure7.rst",
+            category="1 Texture",
+            subcategory="Figure 7 per site",
+            labels={"site": "{site}"},
+        ),
+    log:
+        "logs/figure7/{site}.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    script:
+        "../scripts/figure7.py"
+
+
+rule texture_campaign:
+    """Join all sites with their metadata; the study's Table 4 statistics; distributions."""
+    input:
+        ingest=INGEST,
+        tables=expand(f"{RESULTS}/sites/{{site}}/texture.parquet", site=SITES),
+    output:
+        long=f"{RESULTS}/texture/texture_long.parquet",
+        wide=f"{RESULTS}/texture/campaign.parquet",
+        table4=report(f"{RESULTS}/texture/table4.csv", caption="../report/table4.rst", category="1 Texture"),
+        figure=report(f"{RESULTS}/texture/distributions.png", caption="../report/distributions.rst",
+                      category="1 Texture"),
+    log:
+        "logs/texture_campaign.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    script:
+        "../scripts/texture_campaign.py"

@@ -1,0 +1,17 @@
+"""Snakemake adapter: despeckle a scan (limiting filter or robust variant) and fill invalid points."""
+from skidsim import texture
+from skidsim.runlog import setup_logging, write_json
+from skidsim.scans import read_scan
+from skidsim.workflow_support import save_surfaces
+
+log = setup_logging(snakemake.log[0])
+cfg = snakemake.params.cfg
+surface = read_scan(snakemake.input.scan)
+invalid = surface.invalid_fraction
+clean, n_replaced = texture.despeckle(surface, method=cfg["method"], k=cfg["k"])
+filled = texture.fill_invalid(clean)
+save_surfaces(snakemake.output.surfaces, {"clean": filled})
+write_json(snakemake.output.stats, {"site": snakemake.wildcards.site, "method": cfg["method"], "k": cfg["k"],
+                                    "n_points": int(surface.heights.size), "n_replaced": int(n_replaced),
+                                    "invalid_fraction": invalid, "dx_mm": surface.dx, "dy_mm": surface.dy})
+log.info("%s: %d points replaced, %.3f %% invalid filled", snakemake.wildcards.site, n_replaced, 100 * invalid)

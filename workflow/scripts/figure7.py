@@ -1,0 +1,11 @@
+"""Snakemake adapter: the study's Figure 7 (a-b) for one site."""
+from skidsim.plotting.texture import plot_figure7
+from skidsim.runlog import setup_logging
+from skidsim.scans import read_scan
+from skidsim.workflow_support import load_surfaces
+
+log = setup_logging(snakemake.log[0])
+raw = read_scan(snakemake.input.scan)
+clean = load_surfaces(snakemake.input.surfaces)["clean"]
+bands = load_surfaces(snakemake.input.bands)
+plot_figure7(raw, clean, bands["macro"], bands["micro"], snakemake.output.figure)

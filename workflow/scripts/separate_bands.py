@@ -1,0 +1,11 @@
+"""Snakemake adapter: form removal and Butterworth separation into raw, macro and micro texture."""
+from skidsim import texture
+from skidsim.runlog import setup_logging
+from skidsim.workflow_support import load_surfaces, save_surfaces
+
+log = setup_logging(snakemake.log[0])
+cfg = snakemake.params.cfg
+clean = load_surfaces(snakemake.input.surfaces)["clean"]
+bands = texture.separate_bands(clean, macro=tuple(cfg["macro_mm"]), order=cfg["order"], form=cfg["form"])
+save_surfaces(snakemake.output.bands, bands)
+log.info("bands written: %s", ", ".join(bands))

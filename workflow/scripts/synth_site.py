@@ -1,0 +1,14 @@
+"""Snakemake adapter: generate one synthetic site (scan X3P, DFT trace CSV, ground truth JSON)."""
+from skidsim import synthetic
+from skidsim.runlog import setup_logging
+from skidsim.workflow_support import synthetic_config
+
+log = setup_logging(snakemake.log[0])
+cfg = synthetic_config(snakemake.config)
+design = synthetic.design_campaign(cfg).set_index("site")
+row = design.loc[snakemake.wildcards.site].copy()
+row["site"] = snakemake.wildcards.site
+log.info("generating site %s (section %s)", row["site"], row["section"])
+data = synthetic.generate_site(row, cfg)
+synthetic.write_site(data, snakemake.output.scan, snakemake.output.dft, snakemake.output.truth)
+log.info("done: %s", snakemake.output.scan)
