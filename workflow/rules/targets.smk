@@ -9,6 +9,8 @@ import re
 def all_targets():
     targets = [f"{RESULTS}/texture/table4.csv", f"{RESULTS}/calibration/figure10.png",
                f"{RESULTS}/regression/figure11.png", f"{DIAG}/causes.json"]
+    if SYNTHETIC:
+        targets.append(f"{RESULTS}/truth/campaign.json")
     for s in SITES:
         targets += site_outputs(s)
     return targets

@@ -11,14 +11,10 @@ camp = load_campaign(snakemake.params.campaign, speeds_kmh=snakemake.params.spee
 sites = camp.sites.copy()
 sites["scan"] = sites["scan"].astype(str)
 sites["dft"] = sites["dft"].astype(str)
-points = camp.dft_points(snakemake.params.speeds)
-traces = []
-from skidsim.dft import read_dft  # noqa: E402
-
-for site, path in zip(sites["site"], sites["dft"]):
-    tr = read_dft(path)
-    traces.append(pd.DataFrame({"site": site, "speed_kmh": tr.speeds_kmh, "mu": tr.mu}))
-write_parquet(snakemake.output.traces, pd.concat(traces, ignore_index=True))
+points = camp.dft_points(snakemake.params.speeds, smooth_window_kmh=snakemake.params.smooth_window_kmh)
+traces = pd.concat([pd.DataFrame({"site": site, "speed_kmh": tr.speeds_kmh, "mu": tr.mu})
+                    for site, tr in camp.traces.items()], ignore_index=True)
+write_parquet(snakemake.output.traces, traces)
 write_parquet(snakemake.output.dft, points)
 write_parquet(snakemake.output.sites, sites)
 log.info("campaign %s: %d sites, metadata columns %s", snakemake.params.campaign, len(sites), camp.metadata_columns)
