@@ -12,9 +12,8 @@ rule diagnosis:
         wide=f"{RESULTS}/texture/campaign.parquet",
         params=f"{RESULTS}/calibration/parameters.parquet",
         validation=f"{RESULTS}/calibration/validation.parquet",
-        predictions=f"{REG}/fe/{TEST_SITES[0]}.parquet" if TEST_SITES else [],
         fe_predictions=expand(f"{REG}/fe/{{site}}.parquet", site=TEST_SITES),
-        predicted_params=f"{REG}/predicted_parameters.csv",
+        predicted_params=f"{REG}/test_parameters.csv",
     output:
         residuals=f"{DIAG}/residuals.parquet",
         causes=f"{DIAG}/causes.json",

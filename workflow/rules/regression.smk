@@ -7,26 +7,29 @@ REG = f"{RESULTS}/regression"
 
 
 rule regression:
-    """PCA regression per friction parameter on the training sites; CV comparison of models by section."""
+    """PCA regression per friction parameter on the training sites (Tables 5-6); CV comparison of models by section."""
     input:
         wide=f"{RESULTS}/texture/campaign.parquet",
         params=f"{RESULTS}/calibration/parameters.parquet",
         validation=f"{RESULTS}/calibration/validation.parquet",
         dft=f"{RESULTS}/ingest/dft_points.parquet",
     output:
-        split=f"{REG}/split.json",
+        split=f"{REG}/split.csv",
         table5=report(f"{REG}/table5.csv", caption="../report/table5.rst", category="4 Regression"),
+        table5_statistics=report(f"{REG}/table5_statistics.csv", caption="../report/table5.rst",
+                                 category="4 Regression"),
         table6=report(f"{REG}/table6.csv", caption="../report/table6.rst", category="4 Regression"),
-        cv=report(f"{REG}/cv_comparison.csv", caption="../report/cv.rst", category="4 Regression"),
+        cv_table=report(f"{REG}/cv_table.csv", caption="../report/cv.rst", category="4 Regression"),
+        cv_ranking=report(f"{REG}/cv_ranking.csv", caption="../report/cv.rst", category="4 Regression"),
+        cv_predictions=f"{REG}/cv_predictions.csv",
+        test_parameters=f"{REG}/test_parameters.csv",
+        best_model=f"{REG}/best_model.txt",
         cv_figure=report(f"{REG}/cv_comparison.png", caption="../report/cv.rst", category="4 Regression"),
         table6_figure=report(f"{REG}/table6.png", caption="../report/table6.rst", category="4 Regression"),
-        predictions=f"{REG}/predicted_parameters.csv",
-        model=f"{REG}/model.json",
     params:
         cfg=config["regression"],
         train=TRAIN_SITES,
         test=TEST_SITES,
-        calibration_method=config["regression"]["calibration_method"],
     log:
         "logs/regression.log",
     threads: 1
@@ -41,7 +44,7 @@ rule predict_fe:
     """FE simulation of a held-out site at 20-70 km/h with friction parameters predicted from its texture."""
     input:
         pavement=f"{RESULTS}/sites/{{site}}/pavement.npz",
-        predictions=f"{REG}/predicted_parameters.csv",
+        predictions=f"{REG}/test_parameters.csv",
     output:
         table=f"{REG}/fe/{{site}}.parquet",
     params:
