@@ -1,0 +1,643 @@
+"""Exports of the DFT FE model: STL, gmsh .msh, VTU (ParaView) and ABAQUS/CalculiX .inp; CalculiX runner.
+
+Units (they change numbers; see ``docs/reconstruction.md``):
+
+* Geometry files for viewers and meshers (STL, .msh, VTU) are written in **mm** by default
+  (``unit="m"`` writes metres).
+* The .inp deck is **SI**: m, N, Pa, kg/m^3, s; so the ABAQUS decay coefficient ``d_c`` equals the
+  project's ``alpha`` in s/m.
+
+Pavement solid: the heightfield's nodes on top of a flat bottom at ``Heightfield.z_bottom_m``. The STL top
+is the node grid split into two triangles per cell along the (i, j)-(i+1, j+1) diagonal; the hexahedral
+meshes (msh, VTU, inp) have bilinear top faces through the same nodes.
+
+Every writer writes to a temporary file in the target directory and renames it at the end.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError, SkidsimError
+from .friction import ExponentialDecay, kmh_to_ms
+from .reconstruct import Heightfield
+from .slidermesh import SliderMesh
+
+_UNIT_SCALE = {"mm": 1e3, "m": 1.0}
+
+#: Material of the rubber slider (study, Section 3): E in Pa, nu, rho in kg/m^3.
+RUBBER = {"E_pa": 100e6, "nu": 0.45, "rho_kg_m3": 1200.0}
+#: Nominal DFT load on one slider, N.
+DFT_LOAD_N = 11.8
+
+
+class CalculixError(SkidsimError):
+    """CalculiX failed, did not converge, or wrote output that cannot be parsed."""
+
+
+# ---------------------------------------------------------------------- helpers
+def _scale(unit: str) -> float:
+    if unit not in _UNIT_SCALE:
+        raise InputError(None, "unit 'mm' or 'm'", column="unit", got=unit)
+    return _UNIT_SCALE[unit]
+
+
+@contextmanager
+def _atomic(path: str | Path, suffix: str | None = None):
+    """Yield a temporary path next to ``path`` (same suffix unless given) and rename it on success."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix="." + path.stem + ".", suffix=suffix or path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+# ---------------------------------------------------------------------- pavement geometry
+def pavement_surface_mesh(hf: Heightfield) -> tuple[np.ndarray, np.ndarray]:
+    """Closed triangle mesh of the pavement solid: ``(vertices (N, 3) m, faces (M, 3) int)``.
+
+    Top: the node grid, two triangles per cell. Sides: each boundary segment of the top joined to the
+    bottom by two triangles. Bottom: a fan from the bottom centre over the bottom boundary vertices.
+    Faces are oriented outwards (counter-clockwise seen from outside).
+    """
+    ny, nx = hf.shape
+    X, Y = np.meshgrid(hf.x_m(), hf.y_m())
+    top = np.column_stack([X.ravel(), Y.ravel(), hf.z_m.ravel()])
+    tid = np.arange(ny * nx).reshape(ny, nx)
+    a = tid[:-1, :-1].ravel()
+    b = tid[:-1, 1:].ravel()
+    c = tid[1:, 1:].ravel()
+    d = tid[1:, :-1].ravel()
+    faces = [np.column_stack([a, b, c]), np.column_stack([a, c, d])]
+    # Boundary loop of the top grid, counter-clockwise seen from +z.
+    loop = np.concatenate([tid[0, :-1], tid[:-1, -1], tid[-1, :0:-1], tid[:0:-1, 0]])
+    nb = len(loop)
+    bot = top[loop].copy()
+    bot[:, 2] = hf.z_bottom_m
+    boff = len(top)
+    bid = boff + np.arange(nb)
+    centre = np.array([[0.5 * (hf.extent[0] + hf.extent[1]), 0.5 * (hf.extent[2] + hf.extent[3]), hf.z_bottom_m]])
+    cid = boff + nb
+    nxt = np.roll(np.arange(nb), -1)
+    # Side quads (top k -> top k+1 -> bottom k+1 -> bottom k) oriented outwards.
+    faces.append(np.column_stack([loop, bid, bid[nxt]]))
+    faces.append(np.column_stack([loop, bid[nxt], loop[nxt]]))
+    # Bottom fan, clockwise seen from +z (outward normal -z).
+    faces.append(np.column_stack([np.full(nb, cid), bid[nxt], bid]))
+    verts = np.vstack([top, bot, centre])
+    return verts, np.vstack(faces).astype(np.int64)
+
+
+def triangulated_volume_m3(hf: Heightfield) -> float:
+    """Exact volume (m^3) of :func:`pavement_surface_mesh` (piecewise-linear top, same diagonals)."""
+    h = hf.z_m - hf.z_bottom_m
+    a, b, c, d = h[:-1, :-1], h[:-1, 1:], h[1:, 1:], h[1:, :-1]
+    return float((hf.dx_m * hf.dy_m / 6.0) * np.sum(2 * a + b + 2 * c + d))
+
+
+def pavement_hex_mesh(hf: Heightfield, layers: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Hexahedral mesh of the pavement solid: ``(points (N, 3) m, hexes (M, 8))`` in C3D8/VTK order.
+
+    ``layers`` elements through the thickness, nodes equally spaced between ``z_bottom_m`` and the surface
+    at each (x, y). Node id ``(k * ny + i) * nx + j`` (layer k, row i = y, column j = x); element ids in C
+    order of ``(layer, row, column)``; the top layer's elements are the last ``(ny-1)(nx-1)``, whose face
+    S2 (local nodes 5-8) lies on the surface.
+    """
+    if int(layers) < 1:
+        raise InputError(None, "at least one element layer", column="layers", got=layers)
+    layers = int(layers)
+    ny, nx = hf.shape
+    X, Y = np.meshgrid(hf.x_m(), hf.y_m())
+    frac = np.arange(layers + 1) / layers
+    Z = hf.z_bottom_m + frac[:, None, None] * (hf.z_m - hf.z_bottom_m)[None]
+    pts = np.column_stack([np.broadcast_to(X, Z.shape).ravel(), np.broadcast_to(Y, Z.shape).ravel(), Z.ravel()])
+    nid = np.arange(pts.shape[0]).reshape(layers + 1, ny, nx)
+    k, i, j = np.meshgrid(np.arange(layers), np.arange(ny - 1), np.arange(nx - 1), indexing="ij")
+    k, i, j = k.ravel(), i.ravel(), j.ravel()
+    hexes = np.column_stack([nid[k, i, j], nid[k, i, j + 1], nid[k, i + 1, j + 1], nid[k, i + 1, j],
+                             nid[k + 1, i, j], nid[k + 1, i, j + 1], nid[k + 1, i + 1, j + 1], nid[k + 1, i + 1, j]])
+    return pts, hexes
+
+
+def hex_volumes(points: np.ndarray, hexes: np.ndarray) -> np.ndarray:
+    """Volumes of trilinear hexahedra (C3D8 order) by 2x2x2 Gauss quadrature of det J (exact)."""
+    g = 1.0 / np.sqrt(3.0)
+    corners = np.array([(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1),
+                        (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)], dtype=float)
+    P = points[hexes]  # (M, 8, 3)
+    vol = np.zeros(len(hexes))
+    for xi in (-g, g):
+        for eta in (-g, g):
+            for ze in (-g, g):
+                q = np.array([xi, eta, ze])
+                # dN/dxi_k for the 8 nodes: N = prod (1 + c q)/8
+                f = 1.0 + corners * q  # (8, 3)
+                dN = np.empty((8, 3))
+                dN[:, 0] = corners[:, 0] * f[:, 1] * f[:, 2] / 8
+                dN[:, 1] = corners[:, 1] * f[:, 0] * f[:, 2] / 8
+                dN[:, 2] = corners[:, 2] * f[:, 0] * f[:, 1] / 8
+                J = np.einsum("mna,nb->mab", P, dN)  # (M, 3 coords, 3 params)
+                vol += np.linalg.det(J)
+    return vol
+
+
+# ---------------------------------------------------------------------- STL / VTU / gmsh
+def write_stl(hf: Heightfield, path: str | Path, unit: str = "mm") -> Path:
+    """Write the pavement solid as a watertight binary STL (trimesh), lengths in ``unit``; returns the path."""
+    import trimesh
+
+    s = _scale(unit)
+    v, f = pavement_surface_mesh(hf)
+    mesh = trimesh.Trimesh(vertices=v * s, faces=f, process=False)
+    if not mesh.is_watertight:
+        raise SkidsimError(f"{hf.name or 'heightfield'}: pavement surface mesh is not watertight")
+    path = Path(path)
+    with _atomic(path) as tmp:
+        mesh.export(tmp, file_type="stl")
+    return path
+
+
+def write_vtu_pavement(hf: Heightfield, path: str | Path, layers: int = 1, unit: str = "mm") -> Path:
+    """Write the pavement solid as hexahedra to a VTU file (meshio), with point data ``height_mm``."""
+    import meshio
+
+    s = _scale(unit)
+    pts, hexes = pavement_hex_mesh(hf, layers)
+    mesh = meshio.Mesh(pts * s, [("hexahedron", hexes)], point_data={"height_mm": pts[:, 2] * 1e3})
+    path = Path(path)
+    with _atomic(path) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu")
+    return path
+
+
+def write_vtu_slider(mesh: SliderMesh, path: str | Path, point_data: dict | None = None,
+                     displacement_m: np.ndarray | None = None, unit: str = "mm") -> Path:
+    """Write the slider hex mesh to VTU (meshio); ``point_data`` arrays have ``n_nodes`` rows.
+
+    ``displacement_m`` (``(n_nodes, 3)`` m, optional) moves the points to the deformed configuration and
+    is also stored as point data ``displacement_m``.
+    """
+    import meshio
+
+    s = _scale(unit)
+    pts = mesh.points.copy()
+    data = {}
+    for name, arr in (point_data or {}).items():
+        arr = np.asarray(arr)
+        if arr.shape[0] != mesh.n_nodes:
+            raise InputError(None, f"{mesh.n_nodes} rows (one per slider node)", column=f"point_data[{name!r}]",
+                             got=arr.shape)
+        data[name] = arr
+    if displacement_m is not None:
+        u = np.asarray(displacement_m, dtype=float)
+        if u.shape != pts.shape:
+            raise InputError(None, f"shape {pts.shape}", column="displacement_m", got=u.shape)
+        pts = pts + u
+        data["displacement_m"] = u
+    m = meshio.Mesh(pts * s, [("hexahedron", mesh.connectivity)], point_data=data)
+    path = Path(path)
+    with _atomic(path) as tmp:
+        meshio.write(tmp, m, file_format="vtu")
+    return path
+
+
+def write_gmsh(hf: Heightfield, path: str | Path, layers: int = 4, unit: str = "mm",
+               stride: int = 1) -> Path:
+    """Write a hexahedral volume mesh of the pavement solid to a gmsh .msh (format 4.1) via the gmsh API.
+
+    The structured mesh of :func:`pavement_hex_mesh` (``layers`` through the thickness; ``stride`` > 1 keeps
+    every ``stride``-th node of the heightfield for a coarser mesh) becomes a discrete gmsh volume with a
+    discrete top surface (quads). Physical groups: volume ``pavement`` (tag 1), surface ``top`` (tag 2).
+    """
+    import gmsh
+
+    s = _scale(unit)
+    if int(stride) < 1:
+        raise InputError(None, "a positive integer", column="stride", got=stride)
+    sub = hf
+    if stride > 1:
+        z = hf.z_m[::stride, ::stride]
+        sub = Heightfield(z, hf.dx_m * stride, hf.dy_m * stride, hf.origin_m, hf.z_bottom_m, hf.name, hf.meta)
+    pts, hexes = pavement_hex_mesh(sub, layers)
+    ny, nx = sub.shape
+    ntop = (ny - 1) * (nx - 1)
+    top_quads = hexes[-ntop:, 4:8]
+    path = Path(path)
+    with _atomic(path, suffix=".msh") as tmp:
+        gmsh.initialize(interruptible=False)
+        try:
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.model.add(hf.name or "pavement")
+            vol = gmsh.model.addDiscreteEntity(3)
+            srf = gmsh.model.addDiscreteEntity(2)
+            gmsh.model.mesh.addNodes(3, vol, np.arange(1, len(pts) + 1), (pts * s).ravel())
+            gmsh.model.mesh.addElementsByType(vol, 5, np.arange(1, len(hexes) + 1), (hexes + 1).ravel())
+            gmsh.model.mesh.addElementsByType(srf, 3, np.arange(len(hexes) + 1, len(hexes) + ntop + 1),
+                                              (top_quads + 1).ravel())
+            gmsh.model.addPhysicalGroup(3, [vol], 1, name="pavement")
+            gmsh.model.addPhysicalGroup(2, [srf], 2, name="top")
+            gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+            gmsh.option.setNumber("Mesh.Binary", 0)
+            gmsh.write(str(tmp))
+        finally:
+            gmsh.finalize()
+    return path
+
+
+# ---------------------------------------------------------------------- ABAQUS / CalculiX deck
+@dataclass(frozen=True)
+class InpDeck:
+    """What :func:`write_inp` wrote, for mapping CalculiX results back onto the slider.
+
+    Node ids are 1-based as in the deck. ``slider_node_ids[n]`` is the deck id of ``SliderMesh`` flat node
+    ``n``; the deck's slider coordinates are ``slider.points + slider_offset_m`` (m).
+    """
+
+    path: Path
+    step: str
+    dialect: str
+    holder: str
+    slider_node_ids: np.ndarray
+    pavement_node_ids: np.ndarray
+    ref_node: int
+    slider_offset_m: tuple[float, float, float]
+    bottom_node_ids: np.ndarray  # deck ids of the slider's contact-face nodes, SliderMesh.bottom_nodes() order
+    bottom_tributary_area_m2: np.ndarray  # per bottom node, same order
+    load_n: float
+    penalty_pa_per_m: float
+    mu_equivalent: float | None = None
+    speed_ms: float | None = None
+    slide_distance_m: float | None = None
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _fmt_rows(ids: np.ndarray, arr: np.ndarray, fmt: str = "{:.10e}") -> str:
+    lines = []
+    for i, row in zip(ids, arr):
+        lines.append(f"{int(i)}, " + ", ".join(fmt.format(v) for v in np.atleast_1d(row)))
+    return "\n".join(lines) + "\n"
+
+
+def _id_lines(ids, per_line: int = 12) -> str:
+    ids = [str(int(i)) for i in ids]
+    return "\n".join(", ".join(ids[k:k + per_line]) for k in range(0, len(ids), per_line)) + "\n"
+
+
+def slider_placement(slider: SliderMesh, hf: Heightfield, center_xy_m=None, overclosure_m: float = 1e-6):
+    """Translation (m) that puts the slider's bottom face centre at ``center_xy_m`` (default: the
+    heightfield centre) and lowers it until its highest-reaching bottom node is ``overclosure_m`` below
+    the faceted (bilinear) pavement surface, i.e. exactly one node just in contact.
+    """
+    x0, x1, y0, y1 = hf.extent
+    if center_xy_m is None:
+        center_xy_m = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+    L, W, _ = slider.size_m
+    ox = center_xy_m[0] - (slider.origin[0] + 0.5 * L)
+    oy = center_xy_m[1] - (slider.origin[1] + 0.5 * W)
+    if center_xy_m[0] - 0.5 * L < x0 - 1e-12 or center_xy_m[0] + 0.5 * L > x1 + 1e-12 or \
+            center_xy_m[1] - 0.5 * W < y0 - 1e-12 or center_xy_m[1] + 0.5 * W > y1 + 1e-12:
+        raise InputError(hf.name or None, "a slider footprint inside the pavement extent", column="center_xy_m",
+                         got=tuple(center_xy_m))
+    b = slider.points[slider.bottom_nodes()]
+    zs = hf.bilinear(b[:, 0] + ox, b[:, 1] + oy)
+    oz = float(zs.max()) - overclosure_m - slider.origin[2]
+    return (float(ox), float(oy), oz)
+
+
+def write_inp(path: str | Path, slider: SliderMesh, heightfield: Heightfield, law: ExponentialDecay,
+              load_n: float = DFT_LOAD_N, speed_kmh: float = 20.0, step: str = "static", *,
+              dialect: str = "calculix", holder: str = "rigid", center_xy_m=None,
+              slide_distance_m: float | None = None, penalty_pa_per_m: float | None = None,
+              overclosure_m: float = 1e-6, contact: str = "node to surface",
+              material: dict | None = None, element_type: str = "C3D8R", title: str | None = None) -> InpDeck:
+    """Write an ABAQUS/CalculiX input deck of the DFT slider on the pavement (SI: m, N, Pa, kg/m^3, s).
+
+    Model: the slider (``SliderMesh``, ``element_type`` C3D8R (study) or C3D8, linear elastic rubber E 100 MPa, nu 0.45, rho 1200 kg/m^3)
+    placed by :func:`slider_placement`; the pavement as one layer of C3D8 elements between ``z_bottom_m``
+    and the heightfield nodes, every node fixed (a rigid body without rigid-body machinery); a penalty
+    contact pair (slave: slider bottom face S1, master: pavement top face S2,
+    ``*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR`` with slope ``penalty_pa_per_m``, default
+    ``10 E / h_z`` of the slider).
+
+    ``holder``: ``"rigid"`` (default) ties the vertical displacement of all top-face nodes to one reference
+    top node by ``*EQUATION`` (a stiff, non-tilting holder) and puts ``load_n`` on it; ``"distributed"``
+    spreads the load over the top nodes by tributary area and leaves them free to tilt. In both, the top
+    nodes are held in y, and in x (static) or driven in x (dynamic).
+
+    ``step="static"``: frictionless indentation (``*STATIC``), no ``*FRICTION``.
+    ``step="dynamic"``: ``*DYNAMIC, EXPLICIT`` over ``slide_distance_m`` (default: pavement length minus
+    slider length, starting at the x-start) at ``speed_kmh``: initial velocity of all slider nodes and a
+    linear displacement ramp of the top nodes in x (constant speed). Friction: ``dialect="abaqus"`` writes
+    ``*FRICTION, EXPONENTIAL DECAY`` (mu_s, mu_k, d_c = alpha in s/m); CalculiX has no exponential decay,
+    so ``dialect="calculix"`` writes a constant ``mu = law.mu(v)`` at the sliding speed (slip speed = v),
+    with stick slope ``penalty / 10``.
+    """
+    if step not in ("static", "dynamic"):
+        raise InputError(None, "step 'static' or 'dynamic'", column="step", got=step)
+    if dialect not in ("calculix", "abaqus"):
+        raise InputError(None, "dialect 'calculix' or 'abaqus'", column="dialect", got=dialect)
+    if holder not in ("rigid", "distributed"):
+        raise InputError(None, "holder 'rigid' or 'distributed'", column="holder", got=holder)
+    if contact not in ("node to surface", "surface to surface"):
+        raise InputError(None, "contact 'node to surface' or 'surface to surface'", column="contact", got=contact)
+    if not (np.isfinite(load_n) and load_n > 0):
+        raise InputError(None, "a positive load in N", column="load_n", got=load_n)
+    if element_type not in ("C3D8R", "C3D8"):
+        raise InputError(None, "element_type 'C3D8R' or 'C3D8'", column="element_type", got=element_type)
+    mat = dict(RUBBER, **(material or {}))
+    hf = heightfield
+    L, W, _ = slider.size_m
+    v_ms = float(kmh_to_ms(speed_kmh))
+    notes = []
+    if step == "dynamic":
+        x0, x1, y0, y1 = hf.extent
+        if slide_distance_m is None:
+            slide_distance_m = (x1 - x0) - L
+        if center_xy_m is None:
+            center_xy_m = (x0 + 0.5 * L, 0.5 * (y0 + y1))
+        if center_xy_m[0] + 0.5 * L + slide_distance_m > x1 + 1e-9:
+            raise InputError(hf.name or None, "a slide that keeps the slider on the pavement",
+                             column="slide_distance_m", got=slide_distance_m)
+        if not v_ms > 0:
+            raise InputError(None, "a positive sliding speed in km/h", column="speed_kmh", got=speed_kmh)
+    off = slider_placement(slider, hf, center_xy_m, overclosure_m)
+    kpen = float(penalty_pa_per_m) if penalty_pa_per_m else 10.0 * mat["E_pa"] / slider.hz
+
+    sp = slider.points + np.array(off)
+    ns = slider.n_nodes
+    s_ids = np.arange(1, ns + 1)
+    ppts, phex = pavement_hex_mesh(hf, 1)
+    p_ids = ns + 1 + np.arange(len(ppts))
+    es = slider.n_elements
+    e_slider = np.arange(1, es + 1)
+    e_pave = es + 1 + np.arange(len(phex))
+    conn_s = slider.connectivity + 1
+    conn_p = phex + ns + 1
+    bottom_elems = e_slider[np.arange(es) % slider.nz == 0]
+    top_ids = slider.top_nodes() + 1
+    ref = int(top_ids[0])
+    wx = np.full(slider.nx + 1, slider.hx)
+    wx[[0, -1]] *= 0.5
+    wy = np.full(slider.ny + 1, slider.hy)
+    wy[[0, -1]] *= 0.5
+    trib = np.outer(wx, wy).ravel()  # same C order as top_nodes()/bottom_nodes()
+
+    out = []
+    w = out.append
+    w("*HEADING\n")
+    w((title or f"skidsim DFT model: {hf.name or 'pavement'}, {step} step, {dialect} dialect") + "\n")
+    w("** Units: m, N, Pa, kg/m^3, s. Written by skidsim.exports.write_inp.\n")
+    w(f"** Slider {slider.nx}x{slider.ny}x{slider.nz} {element_type}, offset (m) {off[0]:.6e} {off[1]:.6e} {off[2]:.6e}\n")
+    w("*NODE, NSET=SLIDER_ALL\n")
+    w(_fmt_rows(s_ids, sp))
+    w("*NODE, NSET=PAVE_ALL\n")
+    w(_fmt_rows(p_ids, ppts))
+    w(f"*ELEMENT, TYPE={element_type}, ELSET=SLIDER\n")
+    w(_fmt_rows(e_slider, conn_s, "{:d}"))
+    w("*ELEMENT, TYPE=C3D8, ELSET=PAVEMENT\n")
+    w(_fmt_rows(e_pave, conn_p, "{:d}"))
+    w("*ELSET, ELSET=SLIDER_BOTTOM_EL\n")
+    w(_id_lines(bottom_elems))
+    w("*NSET, NSET=SLIDER_TOP\n")
+    w(_id_lines(top_ids))
+    w("*NSET, NSET=SLIDER_BOTTOM\n")
+    w(_id_lines(slider.bottom_nodes() + 1))
+    w(f"*NSET, NSET=REF\n{ref}\n")
+    w("*SURFACE, NAME=SLIDER_FACE, TYPE=ELEMENT\nSLIDER_BOTTOM_EL, S1\n")
+    w("*SURFACE, NAME=PAVE_FACE, TYPE=ELEMENT\nPAVEMENT, S2\n")
+    w("*MATERIAL, NAME=RUBBER\n*ELASTIC\n{:.6e}, {:.6g}\n*DENSITY\n{:.6g}\n".format(
+        mat["E_pa"], mat["nu"], mat["rho_kg_m3"]))
+    w("** Pavement material: irrelevant (all pavement nodes are fixed).\n")
+    w("*MATERIAL, NAME=PAVE\n*ELASTIC\n2.0e10, 0.3\n*DENSITY\n2400.\n")
+    w("*SOLID SECTION, ELSET=SLIDER, MATERIAL=RUBBER\n")
+    w("*SOLID SECTION, ELSET=PAVEMENT, MATERIAL=PAVE\n")
+    w("*SURFACE INTERACTION, NAME=SLIDER_ROAD\n")
+    if dialect == "abaqus" and step == "dynamic":
+        w("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=HARD\n")
+    else:
+        # CalculiX: slope K (Pa/m) and, for node-to-surface, the tension at large clearance sigma_inf (Pa).
+        w(f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{kpen:.6e}, 1.0\n" if dialect == "calculix"
+          else f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{kpen:.6e}\n")
+    mu_eq = None
+    if step == "dynamic":
+        if dialect == "abaqus":
+            w("*FRICTION, EXPONENTIAL DECAY\n{:.8g}, {:.8g}, {:.8g}\n".format(law.mu_s, law.mu_k, law.alpha))
+        else:
+            mu_eq = float(law.mu(v_ms))
+            w("** CalculiX has no EXPONENTIAL DECAY friction: constant mu = mu(v) at the sliding speed.\n")
+            w(f"** law: mu_s={law.mu_s:.8g}, mu_k={law.mu_k:.8g}, alpha={law.alpha:.8g} s/m; v={v_ms:.6g} m/s\n")
+            w(f"*FRICTION\n{mu_eq:.8g}, {kpen / 10.0:.6e}\n")
+            notes.append("calculix dynamic deck: constant mu = law.mu(speed) instead of exponential decay")
+    ctype = contact.upper()
+    if dialect == "abaqus" and step == "dynamic":
+        w("*CONTACT PAIR, INTERACTION=SLIDER_ROAD, MECHANICAL CONSTRAINT=PENALTY\nSLIDER_FACE, PAVE_FACE\n")
+    else:
+        w(f"*CONTACT PAIR, INTERACTION=SLIDER_ROAD, TYPE={ctype}\nSLIDER_FACE, PAVE_FACE\n")
+    w("*BOUNDARY\nPAVE_ALL, 1, 3\nSLIDER_TOP, 2, 2\n")
+    if step == "static":
+        w("SLIDER_TOP, 1, 1\n")
+    if holder == "rigid":
+        w("*EQUATION\n")
+        for n in top_ids[1:]:
+            w(f"2\n{int(n)}, 3, 1.0, {ref}, 3, -1.0\n")
+    if step == "dynamic":
+        T = slide_distance_m / v_ms
+        w("*AMPLITUDE, NAME=SLIDE\n0.0, 0.0, {:.10e}, 1.0\n".format(T))
+        w("*INITIAL CONDITIONS, TYPE=VELOCITY\n")
+        w(_fmt_rows(s_ids, np.column_stack([np.ones(ns), np.full(ns, v_ms)]), "{:.10g}"))
+    w("*STEP, INC=1000\n" if step == "static" else "*STEP, INC=100000000\n")
+    if step == "static":
+        w("*STATIC\n0.25, 1.0, 1e-6, 1.0\n")
+    else:
+        w("*DYNAMIC, EXPLICIT\n{:.6e}, {:.10e}\n".format(1e-7, slide_distance_m / v_ms))
+        w(f"*BOUNDARY, AMPLITUDE=SLIDE\nSLIDER_TOP, 1, 1, {slide_distance_m:.10e}\n")
+    w("*CLOAD\n")
+    if holder == "rigid":
+        w(f"{ref}, 3, {-load_n:.10e}\n")
+    else:
+        w(_fmt_rows(top_ids, np.column_stack([np.full(len(top_ids), 3), -load_n * trib / trib.sum()]),
+                    "{:.10g}"))
+    if dialect == "calculix" or step == "static":
+        w("*NODE PRINT, NSET=PAVE_ALL, TOTALS=ONLY\nRF\n")
+        w("*NODE PRINT, NSET=SLIDER_ALL\nU\n")
+        w("*CONTACT PRINT\nCSTR\n" if dialect == "calculix" else "*CONTACT PRINT\nCSTRESS\n")
+        w("*NODE FILE\nU\n")
+    else:
+        w("*OUTPUT, HISTORY, TIME INTERVAL={:.6e}\n*NODE OUTPUT, NSET=SLIDER_TOP\nRF1, RF3, U1, U3\n".format(
+            slide_distance_m / v_ms / 200))
+    w("*END STEP\n")
+    text = "".join(out)
+    path = Path(path)
+    with _atomic(path) as tmp:
+        tmp.write_text(text)
+    return InpDeck(path, step, dialect, holder, s_ids, p_ids, ref, off, slider.bottom_nodes() + 1, trib,
+                   float(load_n), kpen, mu_eq,
+                   v_ms if step == "dynamic" else None, slide_distance_m, tuple(notes))
+
+
+# ---------------------------------------------------------------------- CalculiX runner
+@dataclass(frozen=True)
+class CalculixResult:
+    """Results of the last increment of a CalculiX run of a :func:`write_inp` deck (SI units).
+
+    ``total_force_n``: sum of the reaction forces (N) at the fixed pavement nodes ``(fx, fy, fz)``: what the
+    support exerts on the pavement, equal and opposite to the slider's total contact force on it.
+    ``normal_force_n = fz`` (positive when the slider presses down; equals the load in equilibrium).
+    ``contact_nodes``/``contact_pressure_pa``: slave node ids with a contact element and their pressure.
+    ``contact_area_mm2``: summed tributary area (mm^2) of slave nodes with positive pressure (needs the
+    deck; ``None`` otherwise). ``node_ids``/``displacements_m``: the slider nodes printed in the .dat, and
+    ``slider_displacements_m`` the same in ``SliderMesh`` flat order when the deck is given.
+    """
+
+    time: float
+    total_force_n: tuple[float, float, float]
+    normal_force_n: float
+    contact_nodes: np.ndarray
+    contact_pressure_pa: np.ndarray
+    contact_area_mm2: float | None
+    node_ids: np.ndarray
+    displacements_m: np.ndarray
+    slider_displacements_m: np.ndarray | None
+    workdir: Path
+    log: str
+
+
+_FLOAT = r"[-+]?\d+\.\d*(?:[EeDd][-+]?\d+)?"
+
+
+def parse_dat(path: str | Path) -> dict:
+    """Parse the last time block of each table in a CalculiX ``.dat`` file.
+
+    Returns ``{"time": float, "total_force": (fx, fy, fz) | None, "displacements": (ids, (n, 3)) | None,
+    "contact": (ids, (n, 3) press/tang1/tang2) | None}``; raises :class:`CalculixError` on a bad file.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise CalculixError(f"{path}: cannot read CalculiX output ({exc})") from None
+    head = re.compile(r"^\s*(total force|displacements|contact stress)\b.*time\s+(" + _FLOAT + r")\s*$",
+                      re.IGNORECASE)
+    blocks: dict[str, tuple[float, list[list[float]]]] = {}
+    cur = None
+    t_last = None
+    for line in text.splitlines():
+        m = head.match(line)
+        if m:
+            kind = m.group(1).lower()
+            t = float(m.group(2))
+            t_last = t if t_last is None else max(t_last, t)
+            cur = [kind, t, []]
+            blocks.setdefault(kind, (t, []))
+            blocks[kind] = (t, cur[2])
+            continue
+        if cur is None:
+            continue
+        parts = line.split()
+        if not parts:
+            continue
+        try:
+            cur[2].append([float(p.replace("D", "E")) for p in parts])
+        except ValueError:
+            cur = None
+    if t_last is None:
+        raise CalculixError(f"{path}: no result tables (total force, displacements, contact stress) found")
+    out: dict = {"time": t_last, "total_force": None, "displacements": None, "contact": None}
+    if "total force" in blocks and blocks["total force"][1]:
+        out["total_force"] = tuple(blocks["total force"][1][0][:3])
+    for key, name in (("displacements", "displacements"), ("contact stress", "contact")):
+        if key in blocks and blocks[key][1]:
+            a = np.array(blocks[key][1])
+            out[name] = (a[:, 0].astype(np.int64), a[:, 1:4])
+    return out
+
+
+def run_calculix(inp_path: str | Path, workdir: str | Path | None = None, deck: InpDeck | None = None,
+                 ccx: str = "ccx", timeout_s: float = 600.0, threads: int = 1) -> CalculixResult:
+    """Run CalculiX on ``inp_path`` in ``workdir`` (default: the deck's directory) and parse its ``.dat``.
+
+    Raises :class:`CalculixError` when ``ccx`` is missing, fails, reports an ``*ERROR`` or does not finish.
+    ``threads`` sets ``OMP_NUM_THREADS``/``CCX_NPROC_EQUATION_SOLVER`` (default 1: shared machines).
+    """
+    inp_path = Path(inp_path)
+    exe = shutil.which(ccx)
+    if exe is None:
+        raise CalculixError(f"{ccx!r} not found on PATH: install CalculiX (Debian package calculix-ccx)")
+    if not inp_path.is_file():
+        raise InputError(inp_path, "an existing .inp file", got="missing")
+    workdir = Path(workdir) if workdir is not None else inp_path.parent
+    workdir.mkdir(parents=True, exist_ok=True)
+    job = inp_path.stem
+    target = workdir / inp_path.name
+    if target.resolve() != inp_path.resolve():
+        shutil.copyfile(inp_path, target)
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
+    try:
+        proc = subprocess.run([exe, "-i", job], cwd=workdir, env=env, capture_output=True, text=True,
+                              timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        raise CalculixError(f"{inp_path}: CalculiX did not finish within {timeout_s} s") from None
+    log = proc.stdout + proc.stderr
+    (workdir / (job + ".log")).write_text(log)
+    errors = [ln.strip() for ln in log.splitlines() if "*ERROR" in ln]
+    if proc.returncode != 0 or errors or "Job finished" not in log:
+        raise CalculixError(f"{inp_path}: CalculiX failed (exit {proc.returncode}): "
+                            + ("; ".join(errors[:3]) or log[-500:]))
+    res = parse_dat(workdir / (job + ".dat"))
+    if res["total_force"] is None:
+        raise CalculixError(f"{workdir / (job + '.dat')}: no 'total force' table (NODE PRINT TOTALS=ONLY RF)")
+    f = tuple(float(v) for v in res["total_force"])
+    ids, u = res["displacements"] if res["displacements"] is not None else (np.zeros(0, np.int64), np.zeros((0, 3)))
+    cn, cs = res["contact"] if res["contact"] is not None else (np.zeros(0, np.int64), np.zeros((0, 3)))
+    area = None
+    su = None
+    if deck is not None:
+        amap = dict(zip(deck.bottom_node_ids.tolist(), deck.bottom_tributary_area_m2.tolist()))
+        area = 1e6 * float(sum(amap.get(int(n), 0.0) for n, p in zip(cn, cs[:, 0]) if p > 0))
+        if len(ids):
+            pos = {int(n): k for k, n in enumerate(ids)}
+            sel = [pos.get(int(n), -1) for n in deck.slider_node_ids]
+            if min(sel) >= 0:
+                su = u[sel]
+    return CalculixResult(res["time"], f, f[2], cn, cs[:, 0].copy(), area, ids, u, su, workdir, log)
+
+
+def write_model_bundle(hf: Heightfield, slider: SliderMesh, law: ExponentialDecay, outdir: str | Path, *,
+                       load_n: float = DFT_LOAD_N, speed_kmh: float = 20.0, gmsh_layers: int = 4,
+                       unit: str = "mm") -> dict[str, Path]:
+    """Write every export of one site's FE model into ``outdir``; returns ``{kind: path}``.
+
+    Files: ``pavement.npz`` (the heightfield, SI), ``pavement.stl``, ``pavement.msh``, ``pavement.vtu``,
+    ``slider.vtu`` (geometry in ``unit``), ``dft_static_calculix.inp`` (frictionless indentation),
+    ``dft_dynamic_calculix.inp`` (constant mu at ``speed_kmh``) and ``dft_dynamic_abaqus.inp``
+    (``*FRICTION, EXPONENTIAL DECAY``), decks in SI.
+    """
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {
+        "npz": hf.to_npz(out / "pavement.npz"),
+        "stl": write_stl(hf, out / "pavement.stl", unit=unit),
+        "msh": write_gmsh(hf, out / "pavement.msh", layers=gmsh_layers, unit=unit),
+        "vtu_pavement": write_vtu_pavement(hf, out / "pavement.vtu", unit=unit),
+        "vtu_slider": write_vtu_slider(slider, out / "slider.vtu", unit=unit),
+    }
+    for key, step, dialect in (("inp_static", "static", "calculix"), ("inp_dynamic_calculix", "dynamic", "calculix"),
+                               ("inp_dynamic_abaqus", "dynamic", "abaqus")):
+        name = f"dft_{step}_{dialect}.inp"
+        paths[key] = write_inp(out / name, slider, hf, law, load_n, speed_kmh, step, dialect=dialect).path
+    return paths
