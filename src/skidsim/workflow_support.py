@@ -106,3 +106,34 @@ def regression_split(cfg: dict, sites: pd.DataFrame) -> tuple[list[str], list[st
     train, test = split_sites(sites, n_train=n - n_test, seed=int(cfg["seed"]),
                               grouped_by=cfg.get("grouped_by") or None)
     return [str(s) for s in train], [str(s) for s in test]
+
+
+#: The quick preset (config/quick.yaml): the campaign preset on a 2 mm slider mesh with a 12 mm slide.
+QUICK_SOLVER = {"element_mm": 2.0, "slide_length_mm": 12.0, "window_start_mm": 3.0}
+
+
+def solver_config(cfg: dict):
+    """The :class:`~skidsim.solver.SolverConfig` of the workflow's ``solver`` section.
+
+    ``preset`` (campaign | reference | quick) chooses the base, ``load_n`` (N) and ``overrides`` (any SolverConfig
+    field) are applied on top; an unknown field raises :class:`~skidsim.errors.ConfigError`.
+    """
+    from dataclasses import asdict
+
+    from .solver import SolverConfig
+
+    preset = cfg.get("preset", "campaign")
+    if preset == "reference":
+        base = SolverConfig.reference()
+    elif preset == "campaign":
+        base = SolverConfig.campaign()
+    elif preset == "quick":
+        base = SolverConfig.campaign(**QUICK_SOLVER)
+    else:
+        from .errors import ConfigError
+
+        raise ConfigError(f"solver.preset: expected campaign, reference or quick, got {preset!r}")
+    d = asdict(base)
+    d["load_n"] = float(cfg.get("load_n", d["load_n"]))
+    d.update(cfg.get("overrides") or {})
+    return SolverConfig.from_dict(d, source="config solver.overrides")

@@ -11,19 +11,27 @@ rule reconstruct:
         vtu=f"{RESULTS}/sites/{{site}}/pavement.vtu",
         slider=f"{RESULTS}/sites/{{site}}/slider.vtu",
         msh=f"{RESULTS}/sites/{{site}}/pavement.msh",
-        inp=f"{RESULTS}/sites/{{site}}/dft_model.inp",
+        inp_static=f"{RESULTS}/sites/{{site}}/dft_static_calculix.inp",
+        inp_dynamic=f"{RESULTS}/sites/{{site}}/dft_dynamic_calculix.inp",
+        inp_abaqus=f"{RESULTS}/sites/{{site}}/dft_dynamic_abaqus.inp",
+        reconstruction=report(
+            f"{RESULTS}/sites/{{site}}/reconstruction.png",
+            caption="../report/reconstruction.rst",
+            category="1 Texture",
+            subcategory="Figure 7 c-d per site",
+            labels={"site": "{site}", "figure": "reconstruction"},
+        ),
         figure=report(
             f"{RESULTS}/sites/{{site}}/fe_model.png",
             caption="../report/fe_model.rst",
             category="1 Texture",
             subcategory="Figure 7 c-d per site",
-            labels={"site": "{site}"},
+            labels={"site": "{site}", "figure": "FE model"},
         ),
     params:
         mesh=config["mesh"],
         solver=config["solver"],
         friction_start=config["calibration"]["study"]["start"],
-        load_n=config["solver"]["load_n"],
     log:
         "logs/reconstruct/{site}.log",
     threads: 1
