@@ -1,0 +1,1013 @@
+"""Model criticism: where the simulation is systematically wrong, why, a model extension and its measured gain.
+
+Two levels of error (``level``):
+
+* ``"within-site"``: measured DFT mu vs the per-site calibrated simulation ``SN_sim(v)`` (calibration, validation
+  and trace points). The per-site calibration absorbs level shifts, so only the *shape* (the residual profile
+  over speed after removing the site's mean residual) is screened here.
+* ``"between-site"``: measured mu vs texture-based predictions ``sn_pred(v)`` for held-out sites. Level (site
+  mean residual) and shape are screened.
+
+Candidate causes: every column of sites.csv except identifiers and file paths (``exclude``), section included,
+every numeric column of the texture table (all bands), each as a ``"main"`` effect (site-mean residual, between
+level only) and interacting with speed (``"x_speed"``: a free speed profile times the covariate), plus the
+``"functional_form"`` of mu(v) (a residual shape shared by all sites) at each level. For each: the statistic
+(sum of squares of the residual explained by the candidate), its permutation p-value (whole sites permuted; whole
+sections, among sections of equal size, for covariates constant within sections; random sign flips of whole site
+profiles for the functional form), Benjamini-Hochberg (or Benjamini-Yekutieli) adjusted p-values across all
+candidates of all levels, and the cross-validated gain (leave-one-section-out) of adding the candidate to a residual
+model. See ``docs/model-criticism.md`` for every convention. Units: speeds km/h, residuals in friction
+units (mu, dimensionless), temperatures deg C, MPD mm.
+
+The analysis reads only campaign-level tables (never a truth file).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize, minimize_scalar
+
+from .errors import ConfigError, InputError
+from .extensions import (CovariateTerm, DrainageIFI, SharedShape, TemperatureShift, ViscoelasticFE,
+                         exp_curve, fit_exp_curves)
+
+LEVELS = ("within-site", "between-site")
+KINDS = ("calibration", "validation", "trace")
+#: sites.csv columns never treated as candidate causes (identifiers and file paths).
+DEFAULT_EXCLUDE = ("site", "scan", "dft", "scan_path", "dft_path", "path", "file")
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# residuals
+# ----------------------------------------------------------------------------------------------------------------
+
+def _require(df, columns, name):
+    if not isinstance(df, pd.DataFrame):
+        raise InputError(name, "a pandas DataFrame", got=type(df).__name__)
+    for c in columns:
+        if c not in df.columns:
+            raise InputError(name, f"column '{c}' (have {list(df.columns)})", column=c)
+
+
+def _numeric(df, column, name):
+    v = pd.to_numeric(df[column], errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(v)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise InputError(name, "finite numbers", row=row, column=column, got=df[column].iloc[row])
+    return v
+
+
+def _interp_site(target: pd.DataFrame, model: pd.DataFrame, value: str) -> np.ndarray:
+    """Linear interpolation in speed (km/h) of ``model[value]`` per site at ``target`` speeds; NaN outside range."""
+    out = np.full(len(target), np.nan)
+    groups = {s: g for s, g in model.groupby("site", sort=False)}
+    for site, idx in target.groupby("site", sort=False).indices.items():
+        g = groups.get(site)
+        if g is None:
+            continue
+        g = g.groupby("speed_kmh", as_index=False)[value].mean().sort_values("speed_kmh")
+        xs, ys = g["speed_kmh"].to_numpy(float), g[value].to_numpy(float)
+        v = target["speed_kmh"].to_numpy(float)[idx]
+        res = np.interp(v, xs, ys) if len(xs) > 1 else np.where(np.isclose(v, xs[0]), ys[0], np.nan)
+        res[(v < xs[0] - 1e-9) | (v > xs[-1] + 1e-9)] = np.nan
+        out[idx] = res
+    return out
+
+
+def build_residuals(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFrame,
+                    predicted: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Residuals ``measured - model`` in long form, one row per measured point and level.
+
+    ``sites``: (site, section, ...); ``measured``: (site, speed_kmh, mu, kind in {calibration, validation, trace});
+    ``simulated``: (site, speed_kmh, sn) the calibrated simulation; ``predicted``: (site, speed_kmh, sn_pred)
+    texture-based predictions of held-out sites, or None. Model values are interpolated linearly in speed within
+    each site's simulated/predicted speeds; measured points outside that range are dropped (no extrapolation).
+    Returns columns site, section, level, kind, speed_kmh (km/h), measured, model, residual (mu, dimensionless).
+    """
+    _require(sites, ("site", "section"), "sites table")
+    _require(measured, ("site", "speed_kmh", "mu", "kind"), "measured table")
+    _require(simulated, ("site", "speed_kmh", "sn"), "simulated table")
+    m = measured[["site", "speed_kmh", "mu", "kind"]].copy()
+    m["site"] = m["site"].astype(str)
+    m["speed_kmh"] = _numeric(m, "speed_kmh", "measured table")
+    m["mu"] = _numeric(m, "mu", "measured table")
+    badk = ~m["kind"].isin(KINDS)
+    if badk.any():
+        row = int(np.flatnonzero(badk.to_numpy())[0])
+        raise InputError("measured table", f"kind in {KINDS}", row=row, column="kind", got=m["kind"].iloc[row])
+    sec = sites.assign(site=sites["site"].astype(str)).set_index("site")["section"].astype(str)
+    unknown = sorted(set(m["site"]) - set(sec.index))
+    if unknown:
+        raise InputError("measured table", "sites listed in the sites table", column="site", got=unknown[:5])
+    frames = []
+    sim = simulated.assign(site=simulated["site"].astype(str))
+    sim = sim.assign(speed_kmh=_numeric(sim, "speed_kmh", "simulated table"), sn=_numeric(sim, "sn", "simulated table"))
+    for level, model_df, col in (("within-site", sim, "sn"), ("between-site", predicted, "sn_pred")):
+        if model_df is None:
+            continue
+        if level == "between-site":
+            _require(model_df, ("site", "speed_kmh", "sn_pred"), "predicted table")
+            model_df = model_df.assign(site=model_df["site"].astype(str))
+            model_df = model_df.assign(speed_kmh=_numeric(model_df, "speed_kmh", "predicted table"),
+                                       sn_pred=_numeric(model_df, "sn_pred", "predicted table"))
+        t = m[m["site"].isin(set(model_df["site"]))].reset_index(drop=True)
+        if t.empty:
+            continue
+        t["model"] = _interp_site(t, model_df, col)
+        t = t[np.isfinite(t["model"])]
+        t = t.assign(level=level, section=t["site"].map(sec).to_numpy(), residual=t["mu"] - t["model"])
+        frames.append(t.rename(columns={"mu": "measured"}))
+    if not frames:
+        raise InputError("simulated table", "model values for at least one measured site and speed")
+    out = pd.concat(frames, ignore_index=True)
+    return out[["site", "section", "level", "kind", "speed_kmh", "measured", "model", "residual"]]
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# candidates
+# ----------------------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Cause:
+    """One candidate cause and its evidence.
+
+    ``effect``: RMS (over sites and speed bins) of the residual part the candidate explains, in friction units (mu);
+    ``direction``: sign of the association (+1: residual, or its slope over speed for ``x_speed``, grows with the
+    covariate; 0 for categorical / functional form); ``cv_gain``: 1 - MSE_with / MSE_without of the cross-validated
+    residual model (fraction of held-out residual variance explained; <= 0 means no predictive value);
+    ``cv_msr``: cross-validated reduction of the mean squared residual per (site, speed bin) cell, mu^2 (a level
+    term acts on every bin of a site), used to rank significant causes: comparable across kinds and levels;
+    ``z``: (T - mean T_perm) / sd T_perm (standardised statistic); ``group``: numeric candidates with
+    |Pearson r| >= corr_group across sites (itself included); ``significant``: p_adjusted <= fdr and cv_gain > 0.
+    """
+
+    variable: str
+    level: str
+    kind: str
+    effect: float
+    cv_gain: float
+    p_value: float
+    p_adjusted: float
+    significant: bool
+    group: tuple[str, ...] = ()
+    cv_msr: float = 0.0
+    statistic: float = 0.0
+    z: float = 0.0
+    direction: int = 0
+    source: str = ""
+    dtype: str = ""
+    section_level: bool = False
+    n_sites: int = 0
+    n_permutations: int = 0
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["group"] = list(self.group)
+        return d
+
+
+def site_covariates(sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *,
+                    exclude=DEFAULT_EXCLUDE) -> tuple[pd.DataFrame, dict]:
+    """All candidate covariates per site (index = site) and their source/dtype: {name: (source, dtype)}.
+
+    sites.csv: every column but ``exclude``; booleans and numbers are numeric, anything else categorical;
+    constant columns and categoricals with one level per site (identifiers) are dropped; missing numeric values are
+    replaced by the column mean. Texture table (index = site or a 'site' column): every numeric column.
+    """
+    _require(sites, ("site", "section"), "sites table")
+    s = sites.assign(site=sites["site"].astype(str)).set_index("site")
+    if s.index.duplicated().any():
+        raise InputError("sites table", "unique site names", column="site",
+                         got=list(s.index[s.index.duplicated()][:3]))
+    out, info = {}, {}
+    n = len(s)
+    excl = {e.lower() for e in exclude}
+    for c in s.columns:
+        if str(c).lower() in excl:
+            continue
+        col = s[c]
+        num = pd.to_numeric(col, errors="coerce")
+        is_num = col.dtype == bool or (num.notna().sum() == col.notna().sum() and col.notna().any())
+        if is_num and str(c) != "section":
+            v = num.astype(float)
+            if v.isna().all() or np.nanstd(v.to_numpy()) == 0:
+                continue
+            out[str(c)] = v.fillna(v.mean())
+            info[str(c)] = ("sites", "numeric")
+        else:
+            v = col.astype(str).where(col.notna(), "NA")
+            k = v.nunique()
+            if k < 2 or k >= n:
+                continue
+            out[str(c)] = v
+            info[str(c)] = ("sites", "categorical")
+    if texture_wide is not None:
+        t = texture_wide.copy()
+        if "site" in t.columns:
+            t = t.assign(site=t["site"].astype(str)).set_index("site")
+        t.index = t.index.astype(str)
+        for c in t.columns:
+            v = pd.to_numeric(t[c], errors="coerce")
+            if v.notna().sum() == 0 or str(c) in out:
+                continue
+            v = v.reindex(s.index)
+            if v.isna().all() or np.nanstd(v.to_numpy()) == 0:
+                continue
+            out[str(c)] = v.fillna(v.mean()).astype(float)
+            info[str(c)] = ("texture", "numeric")
+    return pd.DataFrame(out, index=s.index), info
+
+
+def _residual_matrix(res: pd.DataFrame, speed_bin_kmh: float) -> tuple[list, np.ndarray, np.ndarray]:
+    """(sites, bin centres km/h, R (n_sites, n_bins)) of mean residual per site and speed bin; bins not observed at
+    every site are dropped."""
+    b = np.round(res["speed_kmh"].to_numpy(float) / speed_bin_kmh) * speed_bin_kmh
+    tab = res.assign(bin=b).pivot_table(index="site", columns="bin", values="residual", aggfunc="mean")
+    tab = tab.loc[:, tab.notna().all(axis=0)]
+    if tab.shape[1] == 0:
+        raise InputError("residuals", f"speed bins ({speed_bin_kmh} km/h) observed at every site")
+    return list(tab.index), tab.columns.to_numpy(float), tab.to_numpy(float)
+
+
+def _basis(values: pd.Series, dtype: str) -> np.ndarray:
+    """Orthonormal basis (n, q) of the centred design of one covariate."""
+    if dtype == "numeric":
+        z = values.to_numpy(float)[:, None]
+    else:
+        z = pd.get_dummies(values.astype(str)).to_numpy(float)
+    z = z - z.mean(axis=0)
+    q, r = np.linalg.qr(z)
+    keep = np.abs(np.diag(r)) > 1e-9 * max(1.0, np.abs(r).max())
+    return q[:, keep]
+
+
+def _section_permutations(sections: np.ndarray, n_perm: int, rng) -> np.ndarray:
+    """(n_perm, n) site index permutations that move whole sections among sections of the same size."""
+    secs, inv = np.unique(sections, return_inverse=True)
+    members = [np.flatnonzero(inv == k) for k in range(len(secs))]
+    sizes = np.array([len(m) for m in members])
+    out = np.tile(np.arange(len(sections)), (n_perm, 1))
+    for size in np.unique(sizes):
+        ks = np.flatnonzero(sizes == size)
+        if len(ks) < 2:
+            continue
+        src = np.stack([members[k] for k in ks])  # (m, size)
+        perm = rng.permuted(np.tile(np.arange(len(ks)), (n_perm, 1)), axis=1)  # (P, m)
+        out[:, src.reshape(-1)] = src[perm].reshape(n_perm, -1)
+    return out
+
+
+def _nested_permutations(sections: np.ndarray, n_perm: int, rng) -> np.ndarray:
+    """(n_perm, n) permutations in the nested exchangeability structure of the campaign (Winkler et al. 2015,
+    multi-level exchangeability blocks): whole sections move among sections of the same size, and sites are
+    shuffled within their section. Valid when residuals share a section effect."""
+    out = _section_permutations(sections, n_perm, rng)
+    secs, inv = np.unique(sections, return_inverse=True)
+    for k in range(len(secs)):
+        pos = np.flatnonzero(inv == k)
+        if len(pos) < 2:
+            continue
+        out[:, pos] = np.take_along_axis(out[:, pos], rng.permuted(np.tile(np.arange(len(pos)), (n_perm, 1)),
+                                                                    axis=1), axis=1)
+    return out
+
+
+def _perm_stats(Y: np.ndarray, Q: np.ndarray, owner: np.ndarray, n_cand: int, perms: np.ndarray,
+                chunk: int = 512) -> np.ndarray:
+    """Permutation statistics (P, n_cand): T = sum over a candidate's basis columns and Y's columns of (Q^T Y_perm)^2."""
+    P = perms.shape[0]
+    out = np.empty((P, n_cand))
+    order = np.argsort(owner, kind="stable")
+    Qs, ow = Q[:, order], owner[order]
+    starts = np.flatnonzero(np.r_[True, ow[1:] != ow[:-1]])
+    ids = ow[starts]
+    for a in range(0, P, chunk):
+        Yp = Y[perms[a:a + chunk]]  # (c, n, S)
+        A = np.einsum("pns,nq->pqs", Yp, Qs, optimize=True)
+        sq = (A * A).sum(axis=2)  # (c, q)
+        out[a:a + chunk][:, ids] = np.add.reduceat(sq, starts, axis=1)
+    return out
+
+
+def _folds(sections: np.ndarray, nested: bool) -> np.ndarray:
+    """Fold id per site: the section (leave-one-section-out), or for section-nested categoricals the site's rank
+    within its section (each fold holds out one site of every section)."""
+    if not nested:
+        return np.unique(sections, return_inverse=True)[1]
+    rank = pd.Series(np.arange(len(sections))).groupby(sections).cumcount().to_numpy()
+    return rank
+
+
+def _cv_sse(Y: np.ndarray, values: pd.Series | None, dtype: str, folds: np.ndarray) -> tuple[float, float]:
+    """Cross-validated SSE of the residual model without and with the candidate.
+
+    Without: training column means. With: numeric -> per-column OLS on [1, z]; categorical -> training group
+    means (a level unseen in training -> training mean). ``values=None`` is the functional-form test: without = 0,
+    with = training column means.
+    """
+    sse0 = sse1 = 0.0
+    for f in np.unique(folds):
+        te, tr = folds == f, folds != f
+        mean_tr = Y[tr].mean(axis=0)
+        if values is None:
+            sse0 += float((Y[te] ** 2).sum())
+            sse1 += float(((Y[te] - mean_tr) ** 2).sum())
+            continue
+        sse0 += float(((Y[te] - mean_tr) ** 2).sum())
+        if dtype == "numeric":
+            z = values.to_numpy(float)
+            X = np.c_[np.ones(tr.sum()), z[tr]]
+            beta, *_ = np.linalg.lstsq(X, Y[tr], rcond=None)
+            pred = np.c_[np.ones(te.sum()), z[te]] @ beta
+        else:
+            lab = values.to_numpy(str)
+            pred = np.tile(mean_tr, (te.sum(), 1))
+            for j, l in enumerate(lab[te]):
+                m = tr & (lab == l)
+                if m.any():
+                    pred[j] = Y[m].mean(axis=0)
+        sse1 += float(((Y[te] - pred) ** 2).sum())
+    return sse0, sse1
+
+
+def adjust_pvalues(p, method: str = "bh") -> np.ndarray:
+    """Benjamini-Hochberg (``"bh"``) or Benjamini-Yekutieli (``"by"``) adjusted p-values (step-up, monotone)."""
+    p = np.asarray(p, dtype=float)
+    m = len(p)
+    if m == 0:
+        return p
+    if method not in ("bh", "by"):
+        raise ConfigError(f"fdr method must be 'bh' or 'by', got {method!r}")
+    cm = np.sum(1.0 / np.arange(1, m + 1)) if method == "by" else 1.0
+    order = np.argsort(p)
+    adj = p[order] * m * cm / np.arange(1, m + 1)
+    adj = np.minimum.accumulate(adj[::-1])[::-1]
+    out = np.empty(m)
+    out[order] = np.minimum(adj, 1.0)
+    return out
+
+
+def auto_permutations(n_candidates: int, fdr: float) -> int:
+    """Default permutation count: with m candidates, BH can only declare a cause if its p-value <= fdr/m, and the
+    smallest permutation p-value is 1/(P+1); we use P = max(999, ceil(4 m / fdr) - 1)."""
+    return int(max(999, math.ceil(4 * n_candidates / fdr) - 1))
+
+
+def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *,
+                      n_permutations: int | None = None, seed: int = 0, fdr: float = 0.05,
+                      corr_group: float = 0.9, speed_bin_kmh: float = 10.0, fdr_method: str = "bh",
+                      min_cv_gain: float = 0.0, exclude=DEFAULT_EXCLUDE) -> list[Cause]:
+    """Screen every candidate cause at every level; returns causes ranked by evidence.
+
+    Ranking: significant causes first (statistical evidence decides whether a cause is named), among them by
+    ``cv_msr`` (cross-validated explained residual mean square, mu^2: predictive evidence); section identity
+    goes below a significant coarser section-level grouping of the same level and kind (parsimony); the rest by
+    ``p_adjusted`` and ``z``. ``n_permutations=None`` uses :func:`auto_permutations`. Residuals are averaged per
+    site and speed bin (``speed_bin_kmh``); only bins observed at every site of a level are used.
+    """
+    _require(residuals, ("site", "level", "speed_kmh", "residual"), "residuals")
+    if not 0 < fdr < 1:
+        raise ConfigError(f"fdr must be in (0, 1), got {fdr}")
+    cov, info = site_covariates(sites, texture_wide, exclude=exclude)
+    section_of = sites.assign(site=sites["site"].astype(str)).set_index("site")["section"].astype(str)
+    rng = np.random.default_rng(seed)
+    tests = []  # dicts with level, kind, name, T, Tperm, cv, effect, direction, ...
+    level_data = {}
+    for level in LEVELS:
+        res = residuals[residuals["level"] == level]
+        if res["site"].nunique() < 4:
+            continue
+        site_ids, bins, R = _residual_matrix(res.assign(site=res["site"].astype(str)), speed_bin_kmh)
+        level_data[level] = (site_ids, bins, R)
+    if not level_data:
+        raise InputError("residuals", "at least 4 sites with residuals at one level")
+    n_tests = sum(len(cov.columns) * (1 if lv == "within-site" else 2) + 1 for lv in level_data)
+    P = auto_permutations(n_tests, fdr) if n_permutations is None else int(n_permutations)
+    if P < 1:
+        raise ConfigError(f"n_permutations must be >= 1, got {P}")
+    if (P + 1) * fdr < n_tests:
+        warnings.warn(f"n_permutations={P} with {n_tests} candidates: the smallest permutation p-value 1/{P + 1} "
+                      f"exceeds fdr/m = {fdr / n_tests:.2g}, so a single cause can never be significant; use "
+                      f"n_permutations=None (auto: {auto_permutations(n_tests, fdr)})", RuntimeWarning, stacklevel=2)
+    for level, (site_ids, bins, R) in level_data.items():
+        missing = [s for s in site_ids if s not in cov.index]
+        if missing:
+            raise InputError("sites table", "a row for every site with residuals", column="site", got=missing[:5])
+        C = cov.loc[site_ids]
+        sec = section_of.loc[site_ids].to_numpy()
+        n, S = R.shape
+        m = R.mean(axis=1)
+        D = R - m[:, None]
+        Ys = {"x_speed": D - D.mean(axis=0)}
+        if level == "between-site":
+            Ys["main"] = (m - m.mean())[:, None]
+        speed_c = bins - bins.mean()
+        # one permutation set for site-level covariates, one for section-level ones
+        perm_site = rng.permuted(np.tile(np.arange(n), (P, 1)), axis=1)
+        perm_nested = _nested_permutations(sec, P, rng)
+        # every covariate is permuted in the nested structure (sections as blocks + sites within sections), which
+        # stays valid when residuals share a section effect; section identity (and any relabelling of it) is
+        # invariant to that, so it is tested against free site permutations (its null: no section clustering)
+        n_sec = len(np.unique(sec))
+        section_level = {c: bool((C[c].groupby(sec).nunique() == 1).all()) for c in C.columns}
+        is_section_id = {c: section_level[c] and C[c].nunique() == n_sec for c in C.columns}
+        bases = {c: _basis(C[c], info[c][1]) for c in C.columns}
+        for kind, Y in Ys.items():
+            for is_id, perms in ((True, perm_site), (False, perm_nested)):
+                names = [c for c in C.columns if is_section_id[c] == is_id and bases[c].shape[1] > 0]
+                if not names:
+                    continue
+                Q = np.concatenate([bases[c] for c in names], axis=1)
+                owner = np.concatenate([np.full(bases[c].shape[1], k) for k, c in enumerate(names)])
+                A = Q.T @ Y
+                T = np.bincount(owner, weights=(A * A).sum(axis=1), minlength=len(names))
+                Tp = _perm_stats(Y, Q, owner, len(names), perms)
+                for k, c in enumerate(names):
+                    dtype = info[c][1]
+                    nested = dtype == "categorical" and \
+                        bool((pd.Series(sec).groupby(C[c].to_numpy()).nunique() == 1).all())
+                    sse0, sse1 = _cv_sse(Y, C[c], dtype, _folds(sec, nested))
+                    direction = 0
+                    if dtype == "numeric":
+                        z = C[c].to_numpy(float) - C[c].mean()
+                        target = Y[:, 0] if kind == "main" else D @ speed_c
+                        direction = int(np.sign(z @ target))
+                    tests.append(dict(variable=c, level=level, kind=kind, T=T[k], Tp=Tp[:, k], sse0=sse0,
+                                      sse1=sse1, n=n, S=Y.shape[1], direction=direction, source=info[c][0],
+                                      dtype=dtype, section_level=section_level[c]))
+        # functional form: mean residual shape over sites, random sign flips of whole sections' profiles
+        flips = rng.choice(np.array([-1.0, 1.0]), size=(P, n_sec))[:, np.unique(sec, return_inverse=True)[1]]
+        Tff = n * float((D.mean(axis=0) ** 2).sum())
+        Tffp = ((flips @ D) ** 2).sum(axis=1) / n
+        sse0, sse1 = _cv_sse(D, None, "", _folds(sec, False))
+        tests.append(dict(variable="functional_form", level=level, kind="functional_form", T=Tff, Tp=Tffp,
+                          sse0=sse0, sse1=sse1, n=n, S=S, direction=0, source="residual", dtype="",
+                          section_level=False))
+    # p-values, FDR, groups
+    pvals = np.array([(1 + np.sum(t["Tp"] >= t["T"] * (1 - 1e-12))) / (P + 1) for t in tests])
+    padj = adjust_pvalues(pvals, fdr_method)
+    # hierarchical (gatekeeper) step, Yekutieli (2008): where section identity is significant at a level and kind,
+    # the section-level covariates of that level and kind (coarser groupings such as mix, section-constant
+    # numbers) are the candidate explanations of the section effect and form a child family adjusted on its own.
+    sec_name = [t["variable"] for t in tests if t["dtype"] == "categorical" and t["section_level"]
+                and cov[t["variable"]].nunique() == section_of.nunique()]
+    for k, t in enumerate(tests):
+        if t["variable"] in sec_name and padj[k] <= fdr:
+            fam = [j for j, u in enumerate(tests) if u["section_level"] and u["variable"] not in sec_name
+                   and u["level"] == t["level"] and u["kind"] == t["kind"]]
+            if fam:
+                child = adjust_pvalues(pvals[fam], fdr_method)
+                for j, pc in zip(fam, child):
+                    padj[j] = min(padj[j], max(pc, padj[k]))
+    num = [c for c in cov.columns if info[c][1] == "numeric"]
+    corr = cov[num].corr().abs() if num else pd.DataFrame()
+    causes = []
+    for t, p, pa in zip(tests, pvals, padj):
+        sd = float(np.std(t["Tp"]))
+        z = (t["T"] - float(np.mean(t["Tp"]))) / sd if sd > 0 else 0.0
+        cvg = 1.0 - t["sse1"] / t["sse0"] if t["sse0"] > 0 else 0.0
+        grp = ()
+        if t["variable"] in corr.columns:
+            row = corr[t["variable"]]
+            grp = tuple(sorted(row.index[row >= corr_group]))
+        causes.append(Cause(variable=t["variable"], level=t["level"], kind=t["kind"],
+                            effect=float(math.sqrt(max(t["T"], 0.0) / (t["n"] * t["S"]))), cv_gain=float(cvg),
+                            p_value=float(p), p_adjusted=float(pa),
+                            significant=bool(pa <= fdr and cvg > min_cv_gain), group=grp,
+                            cv_msr=float((t["sse0"] - t["sse1"]) / (t["n"] * t["S"])), statistic=float(t["T"]),
+                            z=float(z), direction=t["direction"], source=t["source"], dtype=t["dtype"],
+                            section_level=t["section_level"], n_sites=t["n"], n_permutations=P))
+    causes.sort(key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
+    # parsimony: section identity ranks below a significant coarser section-level grouping (e.g. mix) of the
+    # same level and kind, whose evidence it contains
+    n_sec_all = section_of.nunique()
+
+    def is_sid(c):
+        return c.significant and c.dtype == "categorical" and c.section_level and \
+            cov[c.variable].nunique() == n_sec_all
+
+    moved = True
+    while moved:
+        moved = False
+        for k, c in enumerate(causes):
+            if not is_sid(c):
+                continue
+            below = [j for j in range(k + 1, len(causes)) if causes[j].significant and causes[j].section_level
+                     and not is_sid(causes[j]) and causes[j].level == c.level and causes[j].kind == c.kind]
+            if below:
+                causes.insert(below[0], causes.pop(k))
+                moved = True
+                break
+    return causes
+
+
+def named_cause(causes: list[Cause]) -> Cause | None:
+    """The top significant cause, or None."""
+    return causes[0] if causes and causes[0].significant else None
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# extensions: choice, recalibration, cross-fitting
+# ----------------------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ExtendedModel:
+    """The extension chosen for a named cause: ``extension`` (physical where one applies), ``fallback`` (generic
+    term, also evaluated), ``fe_hook`` (solver flags for an FE-level extension, not evaluated here)."""
+
+    cause: Cause
+    extension: object
+    fallback: object | None = None
+    fe_hook: ViscoelasticFE | None = None
+
+
+def _find_mpd_column(cov: pd.DataFrame) -> str | None:
+    for c in cov.columns:
+        if "mpd" in str(c).lower():
+            return str(c)
+    return None
+
+
+def apply_extension(cause: Cause, sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *,
+                    speed_bin_kmh: float = 10.0) -> ExtendedModel:
+    """Choose the extension for a named cause.
+
+    temperature (name contains 'temp') -> :class:`TemperatureShift`; MPD, or a macrotexture cause whose correlated
+    group holds the MPD column, interacting with speed -> :class:`DrainageIFI`; functional form ->
+    :class:`SharedShape` plus the :class:`ViscoelasticFE` hook; anything else -> :class:`CovariateTerm` (on the
+    level for ``main``, on the speed slope for ``x_speed``). Physical extensions carry the generic term as
+    ``fallback``.
+    """
+    if cause.kind == "functional_form":
+        return ExtendedModel(cause, SharedShape(speed_bin_kmh=speed_bin_kmh), None, ViscoelasticFE())
+    generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope")
+    cov, _ = site_covariates(sites, texture_wide)
+    name = cause.variable.lower()
+    if "temp" in name and cause.dtype == "numeric":
+        return ExtendedModel(cause, TemperatureShift(column=cause.variable), generic)
+    mpd = _find_mpd_column(cov)
+    if mpd is not None and cause.kind == "x_speed" and (
+            cause.variable == mpd or mpd in cause.group or "macro" in name):
+        return ExtendedModel(cause, DrainageIFI(mpd_column=mpd), generic, ViscoelasticFE())
+    return ExtendedModel(cause, generic, None)
+
+
+@dataclass
+class _Scope:
+    """Rows to evaluate (held out) and per-site points to refit the law."""
+
+    name: str
+    rows: pd.DataFrame  # site, section, speed_kmh, kind, measured, before
+    sites: list
+    fit_v: np.ndarray  # (n_sites, J) km/h, NaN padded
+    fit_y: np.ndarray
+    row_site: np.ndarray  # index into sites per row
+    base: tuple = ()  # (b, c, alpha) of the plain exponential fit to (fit_v, fit_y), per site
+
+
+def _make_scope(residuals: pd.DataFrame, level: str) -> _Scope | None:
+    r = residuals[residuals["level"] == level].copy()
+    if r.empty:
+        return None
+    r["site"] = r["site"].astype(str)
+    if level == "within-site":
+        fit = r[r["kind"] == "calibration"]
+        rows = r[r["kind"] != "calibration"]
+        fit = fit.assign(y=fit["measured"])
+        name = "held_out_speeds"
+    else:
+        rows = r
+        fit = r.assign(y=r["model"])
+        name = "held_out_sites"
+    sites = sorted(set(rows["site"]) & set(fit["site"]))
+    if len(sites) < 4:
+        return None
+    rows = rows[rows["site"].isin(sites)].rename(columns={"model": "before"}).reset_index(drop=True)
+    fit = fit[fit["site"].isin(sites)]
+    counts = fit.groupby("site").size()
+    J = int(counts.max())
+    fv = np.full((len(sites), J), np.nan)
+    fy = np.full((len(sites), J), np.nan)
+    pos = {s: k for k, s in enumerate(sites)}
+    for s, g in fit.groupby("site"):
+        g = g.groupby("speed_kmh", as_index=False)["y"].mean()
+        fv[pos[s], :len(g)] = g["speed_kmh"].to_numpy(float)
+        fy[pos[s], :len(g)] = g["y"].to_numpy(float)
+    ok = np.isfinite(fy).sum(axis=1) >= 3
+    keep = [s for s, k in zip(sites, ok) if k]
+    if len(keep) < 4:
+        return None
+    if not ok.all():
+        return _make_scope(residuals[~residuals["site"].astype(str).isin(set(sites) - set(keep))], level)
+    return _Scope(name, rows, sites, fv, fy, rows["site"].map(pos).to_numpy(), fit_exp_curves(fv, fy))
+
+
+def _site_values(cov: pd.DataFrame, column: str, sites: list) -> np.ndarray:
+    if column not in cov.columns:
+        raise InputError("sites table / texture table", f"a numeric column '{column}'", column=column)
+    return cov.loc[sites, column].to_numpy(float)
+
+
+def _site_mean(x: np.ndarray, i: np.ndarray, n_sites: int) -> np.ndarray:
+    """Per-row mean of ``x`` over the rows of the same site."""
+    return (np.bincount(i, weights=x, minlength=n_sites) / np.maximum(np.bincount(i, minlength=n_sites), 1))[i]
+
+
+def _physical_params(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> tuple[list, list]:
+    """Names and bounds of the fitted parameters of a physical extension in a scope."""
+    if isinstance(ext, TemperatureShift):
+        return ["t_ref_c"], [ext.t_ref_bounds_c(_site_values(cov, ext.column, scope.sites))]
+    if isinstance(ext, DrainageIFI):
+        return ["kappa"], [ext.kappa_bounds]
+    raise ConfigError(f"not a physical extension: {type(ext).__name__}")
+
+
+def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, theta) -> np.ndarray:
+    """'after' values of every row of ``scope`` for parameters ``theta`` (anchors from the training sites).
+
+    Within a site (held-out speeds) the law is refitted through the calibration points with the extension
+    included and the change is added to the calibrated simulation: ``after = before + f_ext(v) - f_plain(v)``.
+    Between sites the prediction is transformed: TemperatureShift evaluates the exponential fitted to the
+    prediction at the shifted speed; DrainageIFI multiplies by ``m_i(v) / mean_site(m_i)`` with
+    ``m_i(v) = exp(-kappa v (1/Sp_i - mean_train 1/Sp))``: a pure shape correction that keeps each site's mean
+    predicted level over its evaluated speeds (the texture model already carries the level, and the IFI anchor
+    speed then drops out).
+    """
+    theta = np.atleast_1d(np.asarray(theta, dtype=float))
+    v = scope.rows["speed_kmh"].to_numpy(float)
+    before = scope.rows["before"].to_numpy(float)
+    i = scope.row_site
+    within = scope.name == "held_out_speeds"
+    b0, c0, a0 = scope.base
+    if isinstance(ext, TemperatureShift):
+        T = _site_values(cov, ext.column, scope.sites)
+        k = ext.speed_factor(T, float(T[train].mean()), float(theta[0]))
+        if within:
+            # refitting the law through the calibration points at effective speeds k v gives
+            # f(k v; b, c, alpha / k) = f(v; b, c, alpha): the exponential family is closed under speed scaling,
+            # so a per-site calibration absorbs a temperature shift exactly and 'after' equals 'before'
+            return before.copy()
+        return before + exp_curve(v * k[i], b0[i], c0[i], a0[i]) - exp_curve(v, b0[i], c0[i], a0[i])
+    if isinstance(ext, DrainageIFI):
+        inv_sp = ext.inverse_speed_constant(_site_values(cov, ext.mpd_column, scope.sites))
+        if within:
+            M = ext.multiplier(scope.fit_v, inv_sp[:, None], float(theta[0]))
+            b1, c1, a1 = fit_exp_curves(scope.fit_v, scope.fit_y / M)
+            return before + exp_curve(v, b1[i], c1[i], a1[i]) * ext.multiplier(v, inv_sp[i], float(theta[0])) \
+                - exp_curve(v, b0[i], c0[i], a0[i])
+        d = inv_sp - inv_sp[train].mean()
+        m = np.exp(-theta[0] * v * d[i])
+        return before * m / _site_mean(m, i, len(scope.sites))
+    raise ConfigError(f"not a physical extension: {type(ext).__name__}")
+
+
+def recalibrate(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> dict:
+    """Fit the extension's parameters on the training sites (boolean mask over ``scope.sites``).
+
+    Physical extensions: TemperatureShift T_r (deg C); DrainageIFI kappa; minimising the training rows' squared
+    error (bounded scalar search; a coarse grid + bounded Powell if an extension has two parameters);
+    within a site the law is refitted through the calibration points with the extension included. Generic terms:
+    least squares / group means on the training residuals. Returns the fitted parameters (JSON-ready)."""
+    rows_tr = train[scope.row_site]
+    y = scope.rows["measured"].to_numpy(float)
+    if getattr(ext, "physical", False) and not isinstance(ext, ViscoelasticFE):
+        names, bounds = _physical_params(ext, scope, cov, train)
+        if isinstance(ext, TemperatureShift) and scope.name == "held_out_speeds":
+            return {"t_ref_c": float(ext.t_ref_c), "identifiable": False}
+
+        def obj(th):
+            a = _after_physical(ext, scope, cov, train, th)
+            return float(np.sum((a[rows_tr] - y[rows_tr]) ** 2))
+
+        if len(names) == 1:
+            lo, hi = bounds[0]
+            r = minimize_scalar(obj, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3 * (hi - lo)})
+            th = [float(r.x)]
+            for edge in (lo, hi):  # the bounded search can miss an edge optimum
+                if obj([edge]) < obj(th):
+                    th = [float(edge)]
+        else:
+            grids = np.meshgrid(*[np.linspace(lo, hi, 9) for lo, hi in bounds], indexing="ij")
+            cand = np.stack([g.ravel() for g in grids], axis=1)
+            th0 = cand[int(np.argmin([obj(c) for c in cand]))]
+            r = minimize(obj, th0, method="Powell", bounds=bounds, options={"xtol": 1e-4, "ftol": 1e-12})
+            th = [float(x) for x in (r.x if r.fun <= obj(th0) else th0)]
+        return dict(zip(names, th))
+    resid = (y - scope.rows["before"].to_numpy(float))
+    v = scope.rows["speed_kmh"].to_numpy(float)
+    if isinstance(ext, SharedShape):
+        b = np.round(v[rows_tr] / ext.speed_bin_kmh) * ext.speed_bin_kmh
+        prof = pd.Series(resid[rows_tr]).groupby(b).mean()
+        return {"speed_kmh": prof.index.to_list(), "h": prof.to_list()}
+    if isinstance(ext, CovariateTerm):
+        dv = v - _site_mean(v, scope.row_site, len(scope.sites))
+        if ext.name not in cov.columns:
+            raise InputError("sites table / texture table", f"column '{ext.name}'", column=ext.name)
+        col = cov.loc[scope.sites, ext.name]
+        if pd.api.types.is_numeric_dtype(col):
+            z = col.to_numpy(float)
+            zc = z - z[train].mean()
+            zr = zc[scope.row_site]
+            X = np.c_[np.ones(len(v)), zr] if ext.on == "level" else np.c_[dv, zr * dv]
+            beta, *_ = np.linalg.lstsq(X[rows_tr], resid[rows_tr], rcond=None)
+            return {"numeric": True, "z_mean": float(z[train].mean()), "beta": beta.tolist()}
+        lab = col.astype(str).to_numpy()[scope.row_site]
+        groups = {}
+        for g in np.unique(lab[rows_tr]):
+            m = rows_tr & (lab == g)
+            X = np.ones((m.sum(), 1)) if ext.on == "level" else dv[m][:, None]
+            groups[str(g)] = np.linalg.lstsq(X, resid[m], rcond=None)[0].tolist()
+        X = np.ones((rows_tr.sum(), 1)) if ext.on == "level" else dv[rows_tr][:, None]
+        return {"numeric": False, "groups": groups,
+                "overall": np.linalg.lstsq(X, resid[rows_tr], rcond=None)[0].tolist()}
+    raise ConfigError(f"cannot recalibrate extension {type(ext).__name__}")
+
+
+def predict_extended(ext, params: dict, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> np.ndarray:
+    """'after' values for every row of the scope with fitted ``params`` (use the rows of held-out sites)."""
+    v = scope.rows["speed_kmh"].to_numpy(float)
+    before = scope.rows["before"].to_numpy(float)
+    if getattr(ext, "physical", False):
+        return _after_physical(ext, scope, cov, train, [params[k] for k in _physical_params(ext, scope, cov,
+                                                                                              train)[0]])
+    if isinstance(ext, SharedShape):
+        return before + np.interp(v, params["speed_kmh"], params["h"])
+    col = cov.loc[scope.sites, ext.name]
+    dv = v - _site_mean(v, scope.row_site, len(scope.sites))
+    if params["numeric"]:
+        zr = (col.to_numpy(float) - params["z_mean"])[scope.row_site]
+        X = np.c_[np.ones(len(v)), zr] if ext.on == "level" else np.c_[dv, zr * dv]
+        return before + X @ np.asarray(params["beta"])
+    lab = col.astype(str).to_numpy()[scope.row_site]
+    out = before.copy()
+    for j in range(len(v)):
+        c = params["groups"].get(lab[j], params["overall"])
+        out[j] += c[0] * (1.0 if ext.on == "level" else dv[j])
+    return out
+
+
+def _ext_folds(ext, scope: _Scope, cov: pd.DataFrame) -> np.ndarray:
+    sec = scope.rows.groupby("site")["section"].first().reindex(scope.sites).astype(str).to_numpy()
+    nested = False
+    if isinstance(ext, CovariateTerm) and not pd.api.types.is_numeric_dtype(cov[ext.name]):
+        lab = cov.loc[scope.sites, ext.name].astype(str).to_numpy()
+        nested = bool((pd.Series(sec).groupby(lab).nunique() == 1).all())
+    return _folds(sec, nested)
+
+
+def cross_fit(ext, scope: _Scope, cov: pd.DataFrame) -> tuple[pd.DataFrame, list]:
+    """Out-of-sample 'after' for every site: the extension is recalibrated without the site's fold
+    (leave-one-section-out; one site per section for section-nested categorical terms). Returns the rows with
+    columns before/after and the per-fold parameters."""
+    folds = _ext_folds(ext, scope, cov)
+    after = np.full(len(scope.rows), np.nan)
+    params = []
+    for f in np.unique(folds):
+        train = folds != f
+        p = recalibrate(ext, scope, cov, train)
+        a = predict_extended(ext, p, scope, cov, train)
+        te = ~train[scope.row_site]
+        after[te] = a[te]
+        params.append(p)
+    return scope.rows.assign(after=after), params
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# gain
+# ----------------------------------------------------------------------------------------------------------------
+
+def measure_gain(predictions: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0, ci: float = 0.95) -> dict:
+    """RMSE and R^2 before/after on held-out rows, with percentile bootstrap intervals resampling whole sites.
+
+    ``predictions``: columns site, measured, before, after (mu). ``rmse_gain = rmse_before - rmse_after`` and
+    ``r2_gain = r2_after - r2_before`` (positive = the extension helps). R^2 = 1 - SSE/SST with SST about the mean
+    of the (resampled) measured values. ``shape_rmse_*``: RMSE of the residuals about each site's mean residual
+    (what a per-site level shift cannot fix), with its gain and interval. Bootstrap: ``n_boot`` multinomial
+    resamples of the sites (seeded), percentile intervals at level ``ci``; ``gain_excludes_zero``: lower bound of
+    the RMSE gain > 0; ``shape_gain_excludes_zero`` likewise for the shape RMSE.
+    """
+    _require(predictions, ("site", "measured", "before", "after"), "predictions")
+    p = predictions.dropna(subset=["measured", "before", "after"])
+    if p["site"].nunique() < 2:
+        raise InputError("predictions", "held-out rows from at least 2 sites", got=int(p["site"].nunique()))
+    rb, ra = p["measured"] - p["before"], p["measured"] - p["after"]
+    g = p.assign(eb=rb ** 2, ea=ra ** 2, rb=rb, ra=ra, y2=p["measured"] ** 2).groupby("site")
+    n_i = g.size().to_numpy(float)
+    s1 = g["measured"].sum().to_numpy(float)
+    s2 = g["y2"].sum().to_numpy(float)
+    eb = g["eb"].sum().to_numpy(float)
+    ea = g["ea"].sum().to_numpy(float)
+    # shape part: squared residual about each site's own mean residual
+    sb = eb - g["rb"].sum().to_numpy(float) ** 2 / n_i
+    sa = ea - g["ra"].sum().to_numpy(float) ** 2 / n_i
+    k = len(n_i)
+    rng = np.random.default_rng(seed)
+    W = np.vstack([np.ones(k), rng.multinomial(k, np.full(k, 1.0 / k), size=n_boot).astype(float)])
+    N = W @ n_i
+    sst = W @ s2 - (W @ s1) ** 2 / N
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stats = {"rmse_before": np.sqrt(W @ eb / N), "rmse_after": np.sqrt(W @ ea / N),
+                 "r2_before": 1 - (W @ eb) / sst, "r2_after": 1 - (W @ ea) / sst}
+        stats["shape_rmse_before"] = np.sqrt(W @ sb / N)
+        stats["shape_rmse_after"] = np.sqrt(W @ sa / N)
+    stats["rmse_gain"] = stats["rmse_before"] - stats["rmse_after"]
+    stats["shape_rmse_gain"] = stats["shape_rmse_before"] - stats["shape_rmse_after"]
+    stats["r2_gain"] = stats["r2_after"] - stats["r2_before"]
+    q = [(1 - ci) / 2 * 100, (1 + ci) / 2 * 100]
+    out = {"n_sites": int(k), "n_points": int(n_i.sum()), "n_boot": int(n_boot), "seed": int(seed), "ci": ci}
+    for name, arr in stats.items():
+        out[name] = float(arr[0])
+        boot = arr[1:][np.isfinite(arr[1:])]
+        out[name + "_ci"] = [float(x) for x in np.percentile(boot, q)] if len(boot) else [float("nan")] * 2
+    out["gain_excludes_zero"] = bool(out["rmse_gain_ci"][0] > 0)
+    out["shape_gain_excludes_zero"] = bool(out["shape_rmse_gain_ci"][0] > 0)
+    return out
+
+
+def _ext_describe(ext, params) -> dict:
+    d = {"name": type(ext).__name__, "physical": bool(getattr(ext, "physical", False))}
+    d["settings"] = {k: v for k, v in asdict(ext).items()} if hasattr(ext, "__dataclass_fields__") else {}
+    d["params_per_fold"] = params
+    return d
+
+
+@dataclass
+class DiagnosisResult:
+    """Everything :func:`diagnose` found: residual table, ranked causes, the named cause (or None), the gain dict
+    (gain.json), held-out predictions before/after per scope, and the candidate covariates per site."""
+
+    residuals: pd.DataFrame
+    causes: list
+    named: Cause | None
+    gain: dict
+    predictions: pd.DataFrame  # held-out rows: scope, site, speed_kmh, kind, measured, before, after
+    covariates: pd.DataFrame = field(default_factory=pd.DataFrame)
+
+
+def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.DataFrame,
+                       texture_wide: pd.DataFrame | None = None, *, n_boot: int = 2000, seed: int = 0,
+                       ci: float = 0.95) -> tuple[dict, pd.DataFrame]:
+    """Cross-fit the extension (and its generic fallback) on held-out speeds and held-out sites, measure the gain.
+
+    The primary extension is the physical one unless its RMSE-gain interval at the cause's level does not exclude 0
+    while the fallback's lower bound is higher ("no physical model fits"). Returns (gain dict, predictions)."""
+    cov, _ = site_covariates(sites, texture_wide)
+    own = "held_out_speeds" if model.cause.level == "within-site" else "held_out_sites"
+    results = []
+    for ext in [model.extension] + ([model.fallback] if model.fallback is not None else []):
+        scopes, preds = {}, []
+        for level in LEVELS:
+            sc = _make_scope(residuals, level)
+            if sc is None:
+                continue
+            rows, params = cross_fit(ext, sc, cov)
+            scopes[sc.name] = measure_gain(rows, n_boot=n_boot, seed=seed, ci=ci)
+            scopes[sc.name]["extension"] = _ext_describe(ext, params)
+            preds.append(rows.assign(scope=sc.name))
+        results.append((ext, scopes, pd.concat(preds, ignore_index=True) if preds else pd.DataFrame()))
+    best = results[0]
+    if len(results) > 1 and own in best[1] and not best[1][own]["gain_excludes_zero"]:
+        alt = results[1]
+        if alt[1][own]["rmse_gain_ci"][0] > best[1][own]["rmse_gain_ci"][0]:
+            best = alt
+    gain = {"cause": model.cause.as_dict(), "extension": type(best[0]).__name__, "level": model.cause.level,
+            "scope": own, "scopes": best[1],
+            "fe_hook": None if model.fe_hook is None else {"name": "ViscoelasticFE",
+                                                           "solver_flags": model.fe_hook.solver_flags},
+            "alternatives": [{"extension": type(e).__name__, "scopes": s} for e, s, _ in results if e is not best[0]]}
+    gain["gain_excludes_zero"] = bool(own in best[1] and best[1][own]["gain_excludes_zero"])
+    return gain, best[2]
+
+
+def diagnose(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFrame,
+             predicted: pd.DataFrame | None = None, texture_wide: pd.DataFrame | None = None, *,
+             n_permutations: int | None = None, seed: int = 0, fdr: float = 0.05, corr_group: float = 0.9,
+             speed_bin_kmh: float = 10.0, fdr_method: str = "bh", n_boot: int = 2000, ci: float = 0.95,
+             exclude=DEFAULT_EXCLUDE) -> DiagnosisResult:
+    """The whole diagnosis on campaign-level tables: residuals, screening, extension for the named cause,
+    cross-fitted gain. With no named cause, ``gain`` holds the baseline RMSE/R^2 (after = before)."""
+    res = build_residuals(sites, measured, simulated, predicted)
+    causes = screen_candidates(res, sites, texture_wide, n_permutations=n_permutations, seed=seed, fdr=fdr,
+                               corr_group=corr_group, speed_bin_kmh=speed_bin_kmh, fdr_method=fdr_method,
+                               exclude=exclude)
+    top = named_cause(causes)
+    cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
+    if top is not None:
+        model = apply_extension(top, sites, texture_wide, speed_bin_kmh=speed_bin_kmh)
+        gain, preds = evaluate_extension(model, res, sites, texture_wide, n_boot=n_boot, seed=seed, ci=ci)
+    else:
+        scopes, frames = {}, []
+        for level in LEVELS:
+            sc = _make_scope(res, level)
+            if sc is None:
+                continue
+            rows = sc.rows.assign(after=sc.rows["before"])
+            scopes[sc.name] = measure_gain(rows, n_boot=n_boot, seed=seed, ci=ci)
+            frames.append(rows.assign(scope=sc.name))
+        gain = {"cause": None, "extension": None, "level": None, "scope": None, "scopes": scopes,
+                "fe_hook": None, "alternatives": [], "gain_excludes_zero": False}
+        preds = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    return DiagnosisResult(res, causes, top, gain, preds, cov)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# outputs
+# ----------------------------------------------------------------------------------------------------------------
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _json_safe(o):
+    if isinstance(o, dict):
+        return {str(k): _json_safe(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_json_safe(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        return None if not np.isfinite(o) else float(o)
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.bool_):
+        return bool(o)
+    return o
+
+
+def _fmt_ci(d, key):
+    lo, hi = d[key + "_ci"]
+    return f"{d[key]:.4f} [{lo:.4f}, {hi:.4f}]"
+
+
+def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, figures: dict | None = None,
+                  *, top_n: int = 15) -> dict:
+    """Write residuals.parquet, causes.json, gain.json and report.md to ``out_dir`` (each atomically).
+
+    ``figures``: {caption: path of an existing PNG}; embedded in report.md with paths relative to ``out_dir``.
+    Returns {name: path}."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {}
+    p = out / "residuals.parquet"
+    tmp = out / "residuals.parquet.tmp"
+    residuals.to_parquet(tmp, index=False)
+    os.replace(tmp, p)
+    paths["residuals"] = p
+    clist = [c.as_dict() if isinstance(c, Cause) else dict(c) for c in causes]
+    for rank, c in enumerate(clist, 1):
+        c["rank"] = rank
+    _atomic_write_text(out / "causes.json", json.dumps(_json_safe(clist), indent=2) + "\n")
+    paths["causes"] = out / "causes.json"
+    _atomic_write_text(out / "gain.json", json.dumps(_json_safe(gain), indent=2) + "\n")
+    paths["gain"] = out / "gain.json"
+    lines = ["# Model criticism", ""]
+    top = clist[0] if clist and clist[0]["significant"] else None
+    if top is None:
+        lines += ["**No cause named**: no candidate is significant after false-discovery control "
+                  "(and with positive cross-validated gain).", ""]
+    else:
+        grp = ", ".join(top["group"]) if top["group"] else "-"
+        lines += [f"**Named cause: `{top['variable']}`** ({top['level']}, {top['kind']}); correlated group: {grp}; "
+                  f"effect {top['effect']:.4f} mu, cv gain {top['cv_gain']:.3f}, p = {top['p_value']:.2g}, "
+                  f"p_adj = {top['p_adjusted']:.2g}.", "",
+                  f"Extension applied: **{gain.get('extension')}**"
+                  + (f"; FE hook: {gain['fe_hook']['solver_flags']}" if gain.get("fe_hook") else "") + ".", ""]
+    lines += ["## Gain on held-out data (bootstrap over sites)", "",
+              "| scope | sites | points | RMSE before | RMSE after | RMSE gain | R2 before | R2 after |",
+              "|---|---|---|---|---|---|---|---|"]
+    for name, d in gain.get("scopes", {}).items():
+        lines.append(f"| {name} | {d['n_sites']} | {d['n_points']} | {_fmt_ci(d, 'rmse_before')} | "
+                     f"{_fmt_ci(d, 'rmse_after')} | {_fmt_ci(d, 'rmse_gain')} | {_fmt_ci(d, 'r2_before')} | "
+                     f"{_fmt_ci(d, 'r2_after')} |")
+    lines += ["", f"## Candidates (top {top_n} of {len(clist)}, ranked by evidence)", "",
+              "| rank | variable | level | kind | effect (mu) | cv gain | p | p adj | significant | group |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for c in clist[:top_n]:
+        lines.append(f"| {c['rank']} | {c['variable']} | {c['level']} | {c['kind']} | {c['effect']:.4f} | "
+                     f"{c['cv_gain']:.3f} | {c['p_value']:.2g} | {c['p_adjusted']:.2g} | {c['significant']} | "
+                     f"{', '.join(c['group']) if len(c['group']) > 1 else ''} |")
+    if figures:
+        lines += ["", "## Figures", ""]
+        for cap, fp in figures.items():
+            rel = os.path.relpath(Path(fp), out)
+            lines += [f"![{cap}]({rel})", "", f"*{cap}*", ""]
+    _atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
+    paths["report"] = out / "report.md"
+    return paths

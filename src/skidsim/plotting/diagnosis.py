@@ -1,0 +1,124 @@
+"""Figures of the model criticism (skidsim.diagnosis): residuals against the named variable, residuals over
+speed, predictions before/after the extension. Each function writes one PNG atomically and returns its path."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .style import COLORS, figure
+
+
+def _site_summary(res: pd.DataFrame, kind: str) -> pd.Series:
+    """Per-site mean residual (main) or residual slope over speed in mu per 10 km/h (x_speed)."""
+    if kind == "main":
+        return res.groupby("site")["residual"].mean()
+
+    def slope(g):
+        v = g["speed_kmh"].to_numpy(float)
+        r = g["residual"].to_numpy(float)
+        return float(np.polyfit(v - v.mean(), r, 1)[0] * 10.0) if len(np.unique(v)) > 1 else np.nan
+
+    return res.groupby("site")[["speed_kmh", "residual"]].apply(slope)
+
+
+def plot_residuals_vs_variable(residuals: pd.DataFrame, covariates: pd.DataFrame, cause: dict, path) -> Path:
+    """Residual against the named variable at the cause's level: site mean residual (main) or residual slope over
+    speed (x_speed, mu per 10 km/h); for the functional form, residual against speed (km/h) with the mean profile."""
+    res = residuals[residuals["level"] == cause["level"]]
+    with figure(path, figsize=(6.0, 4.0)) as (fig, ax):
+        if cause["kind"] == "functional_form":
+            for _, g in res.groupby("site"):
+                g = g.sort_values("speed_kmh")
+                ax.plot(g["speed_kmh"], g["residual"], color=COLORS["raw"], alpha=0.25, lw=0.7)
+            b = np.round(res["speed_kmh"] / 10.0) * 10.0
+            prof = res.groupby(b)["residual"].mean()
+            ax.plot(prof.index, prof.to_numpy(), "o-", color=COLORS["study"], label="mean over sites")
+            ax.axhline(0, color="k", lw=0.8)
+            ax.set_xlabel("speed (km/h)")
+            ax.set_ylabel("residual measured - model (mu)")
+            ax.legend()
+        else:
+            y = _site_summary(res, cause["kind"])
+            x = covariates.reindex(y.index)[cause["variable"]]
+            ylab = "site mean residual (mu)" if cause["kind"] == "main" else "residual slope (mu per 10 km/h)"
+            if pd.api.types.is_numeric_dtype(x):
+                ax.scatter(x, y, color=COLORS["ours"], s=18)
+                ok = np.isfinite(x.to_numpy(float)) & np.isfinite(y.to_numpy(float))
+                if ok.sum() > 2:
+                    c = np.polyfit(x.to_numpy(float)[ok], y.to_numpy(float)[ok], 1)
+                    xs = np.linspace(np.nanmin(x), np.nanmax(x), 20)
+                    ax.plot(xs, np.polyval(c, xs), color=COLORS["study"], lw=1.2, label="least-squares line")
+                    ax.legend()
+            else:
+                labels = sorted(x.astype(str).unique())
+                for k, lab in enumerate(labels):
+                    yy = y[x.astype(str) == lab].to_numpy(float)
+                    ax.scatter(np.full(len(yy), k) + np.linspace(-0.12, 0.12, len(yy)), yy, s=18,
+                               color=COLORS["ours"])
+                    ax.plot([k - 0.25, k + 0.25], [np.nanmean(yy)] * 2, color=COLORS["study"], lw=2)
+                ax.set_xticks(range(len(labels)), labels, rotation=45 if len(labels) > 6 else 0)
+            ax.axhline(0, color="k", lw=0.8)
+            ax.set_xlabel(cause["variable"])
+            ax.set_ylabel(ylab)
+        ax.set_title(f"{cause['level']} residuals vs {cause['variable']} ({cause['kind']})")
+    return Path(path)
+
+
+def plot_residuals_by_speed(residuals: pd.DataFrame, path) -> Path:
+    """Residual (mu) against speed (km/h) for each level, points coloured by kind."""
+    levels = [lv for lv in ("within-site", "between-site") if (residuals["level"] == lv).any()]
+    with figure(path, ncols=len(levels), figsize=(5.0 * len(levels), 3.8), squeeze=False) as (fig, axes):
+        colors = {"calibration": COLORS["ours"], "validation": COLORS["study"], "trace": "#999999"}
+        for ax, lv in zip(axes[0], levels):
+            r = residuals[residuals["level"] == lv]
+            for kind in ("trace", "calibration", "validation"):
+                g = r[r["kind"] == kind]
+                if len(g):
+                    ax.scatter(g["speed_kmh"], g["residual"], s=6 if kind == "trace" else 14,
+                               color=colors[kind], alpha=0.6, label=kind)
+            ax.axhline(0, color="k", lw=0.8)
+            ax.set_xlabel("speed (km/h)")
+            ax.set_ylabel("residual measured - model (mu)")
+            ax.set_title(lv)
+            ax.legend()
+    return Path(path)
+
+
+def plot_before_after(predictions: pd.DataFrame, path) -> Path:
+    """Measured mu against the model before and after the extension, one panel per held-out scope."""
+    scopes = list(dict.fromkeys(predictions["scope"])) if len(predictions) else []
+    n = max(len(scopes), 1)
+    with figure(path, ncols=n, figsize=(4.6 * n, 4.2), squeeze=False) as (fig, axes):
+        for ax, sc in zip(axes[0], scopes):
+            p = predictions[predictions["scope"] == sc]
+            y = p["measured"].to_numpy(float)
+            for col, c, lab in (("before", COLORS["study"], "before"), ("after", COLORS["ours"], "after")):
+                e = np.sqrt(np.mean((p[col].to_numpy(float) - y) ** 2))
+                ax.scatter(p[col], y, s=8, alpha=0.6, color=c, label=f"{lab} (RMSE {e:.4f})")
+            lo = float(np.nanmin([y.min(), p["before"].min(), p["after"].min()]))
+            hi = float(np.nanmax([y.max(), p["before"].max(), p["after"].max()]))
+            ax.plot([lo, hi], [lo, hi], color="k", lw=0.8)
+            ax.set_xlabel("model (mu)")
+            ax.set_ylabel("measured DFT (mu)")
+            ax.set_title(sc.replace("_", " "))
+            ax.legend()
+    return Path(path)
+
+
+def diagnosis_figures(result, out_dir) -> dict:
+    """All figures of a :class:`skidsim.diagnosis.DiagnosisResult` into ``out_dir``; returns {caption: path}."""
+    out = Path(out_dir)
+    figs = {}
+    figs["Residuals against speed at each level"] = plot_residuals_by_speed(result.residuals,
+                                                                             out / "residuals_by_speed.png")
+    if result.named is not None:
+        c = result.named.as_dict()
+        figs[f"Residuals against the named variable {c['variable']}"] = plot_residuals_vs_variable(
+            result.residuals, result.covariates, c, out / "residuals_vs_cause.png")
+    if len(result.predictions):
+        figs["Measured against model before and after the extension (held-out data)"] = plot_before_after(
+            result.predictions, out / "before_after.png")
+    return figs

@@ -1,0 +1,203 @@
+"""Tests of skidsim.diagnosis: residual tables, permutation/FDR machinery, hidden-effect campaigns, outputs.
+
+The campaigns come from tests/diagnosis_campaigns.py; the analysis receives only the campaign-level tables
+(sites, measured, simulated, predicted, texture); the truth returned beside them is used only to assert.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from diagnosis_campaigns import make_campaign  # noqa: E402
+
+from skidsim import diagnosis as dg  # noqa: E402
+from skidsim.errors import InputError  # noqa: E402
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# residual table
+# ---------------------------------------------------------------------------------------------------------------
+
+def _tiny():
+    sites = pd.DataFrame({"site": ["a", "b"], "section": ["S1", "S1"], "temperature_c": [10.0, 20.0]})
+    measured = pd.DataFrame({"site": ["a", "a", "a", "b", "b"], "speed_kmh": [20.0, 25.0, 95.0, 20.0, 40.0],
+                             "mu": [0.60, 0.55, 0.30, 0.50, 0.45],
+                             "kind": ["calibration", "trace", "trace", "calibration", "validation"]})
+    simulated = pd.DataFrame({"site": ["a", "a", "b", "b"], "speed_kmh": [20.0, 40.0, 20.0, 40.0],
+                              "sn": [0.58, 0.48, 0.50, 0.40]})
+    predicted = pd.DataFrame({"site": ["b", "b"], "speed_kmh": [20.0, 60.0], "sn_pred": [0.52, 0.40]})
+    return sites, measured, simulated, predicted
+
+
+def test_build_residuals_interpolates_and_drops_out_of_range():
+    sites, measured, simulated, predicted = _tiny()
+    r = dg.build_residuals(sites, measured, simulated, predicted)
+    w = r[r["level"] == "within-site"].set_index(["site", "speed_kmh"])
+    assert len(w) == 4  # a@95 km/h lies outside the simulated 20-40 km/h: dropped, not extrapolated
+    assert w.loc[("a", 25.0), "model"] == pytest.approx(0.58 - 0.10 * 5 / 20)
+    assert w.loc[("a", 25.0), "residual"] == pytest.approx(0.55 - 0.555)
+    assert w.loc[("b", 40.0), "residual"] == pytest.approx(0.05)
+    b = r[r["level"] == "between-site"].set_index(["site", "speed_kmh"])
+    assert set(b.index.get_level_values("site")) == {"b"}
+    assert b.loc[("b", 40.0), "model"] == pytest.approx(0.46)
+    assert (r["section"] == "S1").all()
+
+
+@pytest.mark.parametrize("mutate, column", [
+    (lambda m: m.assign(kind=["calibration", "bogus", "trace", "calibration", "validation"]), "kind"),
+    (lambda m: m.drop(columns="mu"), "mu"),
+    (lambda m: m.assign(speed_kmh=["20", "x", "95", "20", "40"]), "speed_kmh"),
+])
+def test_build_residuals_bad_input_names_the_field(mutate, column):
+    sites, measured, simulated, predicted = _tiny()
+    with pytest.raises(InputError) as e:
+        dg.build_residuals(sites, mutate(measured), simulated, predicted)
+    assert e.value.column == column
+    assert "measured table" in str(e.value)
+
+
+def test_build_residuals_unknown_site():
+    sites, measured, simulated, predicted = _tiny()
+    with pytest.raises(InputError, match="sites listed in the sites table"):
+        dg.build_residuals(sites.iloc[:1], measured, simulated, predicted)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# machinery
+# ---------------------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("method, sm", [("bh", "fdr_bh"), ("by", "fdr_by")])
+def test_adjust_pvalues_matches_statsmodels(method, sm):
+    from statsmodels.stats.multitest import multipletests
+    p = np.random.default_rng(0).uniform(0, 0.2, 40) ** 2
+    assert dg.adjust_pvalues(p, method) == pytest.approx(multipletests(p, method=sm)[1], rel=1e-12)
+
+
+def test_nested_permutations_keep_sections_whole():
+    sec = np.repeat(np.array(["A", "B", "C", "D", "E"]), [3, 3, 3, 2, 2])
+    perms = dg._nested_permutations(sec, 200, np.random.default_rng(1))
+    for p in perms:
+        assert sorted(p) == list(range(len(sec)))
+        # the sites now at the positions of each section all come from one section of the same size
+        for s in np.unique(sec):
+            src = sec[p[sec == s]]
+            assert len(set(src)) == 1 and (sec == src[0]).sum() == (sec == s).sum()
+    # sections do move and sites are shuffled within sections
+    assert (sec[perms[:, 0]] != "A").any()
+    assert len({tuple(p[:3]) for p in perms if sec[p[0]] == "A"}) > 1
+
+
+def test_permutation_statistics_match_direct_projection():
+    rng = np.random.default_rng(2)
+    n, S = 12, 4
+    Y = rng.normal(size=(n, S))
+    x1 = rng.normal(size=n)
+    lab = pd.Series(np.array(list("aabbccaabbcc")))
+    Q = np.concatenate([dg._basis(pd.Series(x1), "numeric"), dg._basis(lab, "categorical")], axis=1)
+    owner = np.array([0, 1, 1])
+    perms = rng.permuted(np.tile(np.arange(n), (5, 1)), axis=1)
+    T = dg._perm_stats(Y, Q, owner, 2, perms)
+    for k, p in enumerate(perms):
+        Yp = Y[p] - Y[p].mean(axis=0)
+        xc = x1 - x1.mean()
+        assert T[k, 0] == pytest.approx(((xc @ Yp) ** 2).sum() / (xc @ xc))
+        # categorical: between-group sum of squares
+        ss = sum(((Yp[lab == g].sum(axis=0)) ** 2).sum() / (lab == g).sum() for g in "abc")
+        assert T[k, 1] == pytest.approx(ss)
+
+
+def test_measure_gain_matches_direct_formulas():
+    rng = np.random.default_rng(4)
+    rows = []
+    for i in range(10):
+        for v in (20.0, 40.0, 60.0):
+            y = 0.5 + 0.02 * rng.normal()
+            rows.append((f"s{i}", v, y, y + 0.03 * rng.normal(), y + 0.01 * rng.normal()))
+    p = pd.DataFrame(rows, columns=["site", "speed_kmh", "measured", "before", "after"])
+    g = dg.measure_gain(p, n_boot=300, seed=1)
+    eb = p["measured"] - p["before"]
+    ea = p["measured"] - p["after"]
+    assert g["rmse_before"] == pytest.approx(np.sqrt(np.mean(eb ** 2)))
+    assert g["rmse_after"] == pytest.approx(np.sqrt(np.mean(ea ** 2)))
+    from sklearn.metrics import r2_score
+    assert g["r2_after"] == pytest.approx(r2_score(p["measured"], p["after"]))
+    shape = eb - eb.groupby(p["site"]).transform("mean")
+    assert g["shape_rmse_before"] == pytest.approx(np.sqrt(np.mean(shape ** 2)))
+    lo, hi = g["rmse_gain_ci"]
+    assert lo <= g["rmse_gain"] <= hi and lo > 0 and g["gain_excludes_zero"]
+    same = dg.measure_gain(p.assign(after=p["before"]), n_boot=100, seed=1)
+    assert same["rmse_gain"] == 0 and same["rmse_gain_ci"] == [0.0, 0.0] and not same["gain_excludes_zero"]
+    assert g == dg.measure_gain(p, n_boot=300, seed=1)  # deterministic for a seed
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# hidden effects: the analysis sees only the campaign tables
+# ---------------------------------------------------------------------------------------------------------------
+
+def _diagnose(tables, **kw):
+    t = tables
+    return dg.diagnose(t["sites"], t["measured"], t["simulated"], t["predicted"], t["texture"], **kw)
+
+
+@pytest.mark.parametrize("effect", ["temperature", "drainage", "wear", "mix"])
+def test_hidden_effect_is_named_and_extension_gains(effect):
+    tables, truth = make_campaign(seed=0, effect=effect)
+    r = _diagnose(tables, seed=0, n_boot=400)
+    top = r.named
+    assert top is not None and top.significant and top is r.causes[0]
+    hidden = truth["variable"]
+    assert top.variable == hidden or hidden in top.group, (top, hidden)
+    assert top.level == "between-site"
+    # the extension's gain on held-out data (held-out sites for a between-site cause) excludes zero
+    own = r.gain["scopes"][r.gain["scope"]]
+    assert r.gain["scope"] == "held_out_sites"
+    assert own["rmse_gain_ci"][0] > 0 and own["rmse_after"] < own["rmse_before"]
+    assert own["r2_after"] > own["r2_before"]
+    assert r.gain["gain_excludes_zero"]
+    # the physical extension is used where one exists
+    expected = {"temperature": "TemperatureShift", "drainage": "DrainageIFI"}.get(effect)
+    if expected is not None:
+        assert expected in [r.gain["extension"]] + [a["extension"] for a in r.gain["alternatives"]]
+
+
+@pytest.mark.slow
+def test_null_campaigns_name_nothing():
+    named = []
+    for seed in range(20):
+        tables, truth = make_campaign(seed=100 + seed, effect=None, trace_step_kmh=0)
+        res = dg.build_residuals(tables["sites"], tables["measured"], tables["simulated"], tables["predicted"])
+        causes = dg.screen_candidates(res, tables["sites"], tables["texture"], seed=seed)
+        assert causes[0].n_permutations >= 4 * len(causes) / 0.05 - 1  # enough for BH to be able to name one
+        named.append(dg.named_cause(causes) is not None)
+    assert sum(named) <= 1, named  # >= 95 % of null seeds name nothing
+
+
+def test_write_outputs_and_figures(tmp_path):
+    from skidsim.plotting.diagnosis import diagnosis_figures
+    tables, _ = make_campaign(seed=0, effect="wear", trace_step_kmh=10.0)
+    r = _diagnose(tables, seed=0, n_boot=200, n_permutations=2999)
+    figs = diagnosis_figures(r, tmp_path)
+    paths = dg.write_outputs(tmp_path, r.residuals, r.causes, r.gain, figs)
+    res = pd.read_parquet(paths["residuals"])
+    assert set(res["level"]) == {"within-site", "between-site"}
+    assert np.allclose(res["residual"], res["measured"] - res["model"])
+    causes = json.loads(Path(paths["causes"]).read_text())
+    for key in ("variable", "level", "effect", "cv_gain", "p_value", "p_adjusted", "significant", "rank"):
+        assert key in causes[0]
+    assert [c["rank"] for c in causes] == list(range(1, len(causes) + 1))
+    gain = json.loads(Path(paths["gain"]).read_text())
+    for sc in gain["scopes"].values():
+        for key in ("rmse_before", "rmse_after", "r2_before", "r2_after", "rmse_gain_ci", "r2_after_ci"):
+            assert key in sc
+    report = Path(paths["report"]).read_text()
+    assert causes[0]["variable"] in report
+    for p in figs.values():
+        assert Path(p).stat().st_size > 1000 and f"]({Path(p).name})" in report
+    assert not list(tmp_path.glob("*.tmp*"))

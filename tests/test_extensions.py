@@ -1,0 +1,144 @@
+"""Tests of skidsim.extensions and of the law-level recalibration in skidsim.diagnosis."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skidsim import diagnosis as dg
+from skidsim.errors import ConfigError, InputError
+from skidsim.extensions import (CovariateTerm, DrainageIFI, TemperatureShift, exp_curve, fit_exp_curves,
+                                ifi_speed_constant_kmh, wlf_log10_shift)
+
+
+def test_wlf_values_and_pole():
+    # log10 a_T = -C1 dT / (C2 + dT): 0 at T_r, -8.86*50/151.6 at T_r + 50 K, +8.86*20/81.6 at T_r - 20 K
+    assert wlf_log10_shift(20.0, 20.0) == pytest.approx(0.0)
+    assert wlf_log10_shift(10.0, -40.0) == pytest.approx(-8.86 * 50 / 151.6, rel=1e-12)
+    assert wlf_log10_shift(-60.0, -40.0) == pytest.approx(8.86 * 20 / 81.6, rel=1e-12)
+    with pytest.raises(ConfigError):
+        wlf_log10_shift(-150.0, -40.0)  # T - T_r = -110 K beyond the pole at -101.6 K
+
+
+def test_temperature_shift_anchor_and_monotone():
+    ext = TemperatureShift()
+    t = np.array([5.0, 10.0, 16.0, 22.0, 30.0])
+    k = ext.speed_factor(t, anchor_c=16.0, t_ref_c=-40.0)
+    assert k[2] == pytest.approx(1.0)
+    assert np.all(np.diff(k) < 0)  # warmer rubber behaves like slower sliding
+    # sensitivity at T - T_r = 56 K: d log10 a_T / dT = -C1 C2 / (C2 + dT)^2
+    h = 1e-4
+    d = (np.log10(ext.speed_factor(16.0 + h, 16.0, -40.0)) - np.log10(ext.speed_factor(16.0 - h, 16.0, -40.0))) / (2 * h)
+    assert d == pytest.approx(-8.86 * 101.6 / (101.6 + 56.0) ** 2, rel=1e-6)
+
+
+def test_ifi_speed_constant_and_multiplier():
+    assert ifi_speed_constant_kmh(1.0) == pytest.approx(103.9)
+    assert ifi_speed_constant_kmh(np.array([0.0, 0.5])) == pytest.approx([14.2, 14.2 + 44.85])
+    ext = DrainageIFI()
+    inv = ext.inverse_speed_constant(0.8)
+    assert ext.multiplier(60.0, inv, 1.0) == pytest.approx(1.0)
+    # IFI: F(S) = F60 exp((60 - S)/Sp)
+    assert ext.multiplier(20.0, inv, 1.0) == pytest.approx(np.exp(40.0 / (14.2 + 89.7 * 0.8)))
+
+
+def _aitken(y1, y2, y3, dv_ms):
+    """Closed form of the exponential through three equally spaced points (field notes)."""
+    r = (y2 - y3) / (y1 - y2)
+    alpha = -np.log(r) / dv_ms
+    mu_k = (y1 * y3 - y2 ** 2) / (y1 + y3 - 2 * y2)
+    return mu_k, alpha
+
+
+def test_fit_exp_curves_matches_aitken_and_recovers_truth():
+    rng = np.random.default_rng(3)
+    n = 12
+    b = rng.uniform(0.25, 0.4, n)
+    c = rng.uniform(0.15, 0.35, n)
+    a = rng.uniform(0.03, 0.3, n)
+    v = np.array([20.0, 40.0, 60.0])
+    y = exp_curve(v[None, :], b[:, None], c[:, None], a[:, None])
+    fb, fc, fa = fit_exp_curves(np.tile(v, (n, 1)), y)
+    mu_k, alpha = _aitken(y[:, 0], y[:, 1], y[:, 2], 20.0 / 3.6)
+    assert fa == pytest.approx(alpha, rel=2e-3)
+    assert fb == pytest.approx(mu_k, abs=2e-4)
+    assert fa == pytest.approx(a, rel=2e-3)
+    # more points with NaN padding: same truth
+    v6 = np.tile(np.arange(20.0, 71.0, 10.0), (n, 1))
+    y6 = exp_curve(v6, b[:, None], c[:, None], a[:, None])
+    y6[0, -1] = np.nan
+    gb, gc, ga = fit_exp_curves(v6, y6)
+    assert ga == pytest.approx(a, rel=2e-3)
+    assert gb + gc == pytest.approx(b + c, abs=1e-3)
+
+
+def test_fit_exp_curves_needs_three_points():
+    with pytest.raises(InputError):
+        fit_exp_curves(np.array([[20.0, 40.0, 60.0]]), np.array([[0.5, np.nan, 0.4]]))
+
+
+def test_covariate_term_rejects_unknown_target():
+    with pytest.raises(ConfigError):
+        CovariateTerm("x", on="curvature")
+
+
+def _scope_tables(kappa=None, t_shift=False, n_sec=8, per=3, seed=0):
+    """Noise-free tables: within-site rows with a drainage factor, or between-site predictions vs a WLF truth."""
+    rng = np.random.default_rng(seed)
+    n = n_sec * per
+    site = [f"s{i}" for i in range(n)]
+    sites = pd.DataFrame({"site": site, "section": np.repeat([f"S{k}" for k in range(n_sec)], per),
+                          "temperature_c": 16.0 + np.linspace(-6, 6, n)[rng.permutation(n)]})
+    mpd = rng.uniform(0.4, 1.4, n)
+    tex = pd.DataFrame({"site": site, "mpd_mm": mpd})
+    b, c, a = rng.uniform(0.3, 0.4, n), rng.uniform(0.2, 0.3, n), rng.uniform(0.06, 0.14, n)
+    rows = []
+    for i in range(n):
+        for kind, vs in (("calibration", (20.0, 40.0, 60.0)), ("validation", (30.0, 50.0, 70.0, 80.0))):
+            for v in vs:
+                base = exp_curve(v, b[i], c[i], a[i])
+                if kappa is not None:
+                    meas = base * np.exp(-kappa * (v - 20.0) / (14.2 + 89.7 * mpd[i]))
+                else:
+                    k = TemperatureShift().speed_factor(sites["temperature_c"][i], 16.0, -40.0)
+                    meas = exp_curve(v * k, b[i], c[i], a[i])
+                rows.append((site[i], v, meas, kind, base))
+    t = pd.DataFrame(rows, columns=["site", "speed_kmh", "measured", "kind", "base"])
+    return sites, tex, t
+
+
+def test_recalibrate_drainage_recovers_kappa_within_site():
+    sites, tex, t = _scope_tables(kappa=0.8)
+    # the calibrated simulation: plain exponential through the measured calibration points
+    cal = t[t["kind"] == "calibration"].sort_values(["site", "speed_kmh"])
+    v3 = cal["speed_kmh"].to_numpy().reshape(-1, 3)
+    b, c, a = fit_exp_curves(v3, cal["measured"].to_numpy().reshape(-1, 3))
+    sb = dict(zip(cal["site"].unique(), zip(b, c, a)))
+    t["model"] = [exp_curve(v, *sb[s]) for s, v in zip(t["site"], t["speed_kmh"])]
+    res = t.assign(level="within-site", residual=t["measured"] - t["model"],
+                   section=t["site"].map(sites.set_index("site")["section"]))
+    cov, _ = dg.site_covariates(sites, tex)
+    sc = dg._make_scope(res, "within-site")
+    train = np.ones(len(sc.sites), bool)
+    p = dg.recalibrate(DrainageIFI(mpd_column="mpd_mm"), sc, cov, train)
+    assert p["kappa"] == pytest.approx(0.8, abs=0.02)
+    after = dg.predict_extended(DrainageIFI(mpd_column="mpd_mm"), p, sc, cov, train)
+    before_err = np.abs(sc.rows["measured"] - sc.rows["before"]).max()
+    assert before_err > 1e-3  # the plain law misses the drainage shape at held-out speeds ...
+    assert np.abs(sc.rows["measured"] - after).max() < 0.05 * before_err  # ... the extension recovers it
+
+
+def test_recalibrate_temperature_recovers_reference_between_sites():
+    sites, tex, t = _scope_tables(kappa=None)
+    # texture-model predictions = the temperature-free law; the truth is shifted by WLF (T_r = -40 C)
+    res = t.assign(level="between-site", model=t["base"], residual=t["measured"] - t["base"],
+                   section=t["site"].map(sites.set_index("site")["section"]))
+    cov, _ = dg.site_covariates(sites, tex)
+    sc = dg._make_scope(res, "between-site")
+    train = np.ones(len(sc.sites), bool)
+    p = dg.recalibrate(TemperatureShift(), sc, cov, train)
+    assert p["t_ref_c"] == pytest.approx(-40.0, abs=1.0)
+    after = dg.predict_extended(TemperatureShift(), p, sc, cov, train)
+    assert np.sqrt(np.mean((after - sc.rows["measured"]) ** 2)) < 2e-4
+    assert np.sqrt(np.mean((sc.rows["before"] - sc.rows["measured"]) ** 2)) > 5e-3
