@@ -28,7 +28,15 @@ def setup_logging(log_path: str | Path | None = None, level: int = logging.INFO)
         h.setFormatter(logging.Formatter(LOG_FORMAT))
         root.addHandler(h)
     root.setLevel(level)
-    return logging.getLogger("skidsim")
+    logger = logging.getLogger("skidsim")
+
+    def _hook(exc_type, exc, tb, _default=sys.excepthook):  # failures reach the rule's log file too
+        logger.error("failed: %s: %s", exc_type.__name__, exc, exc_info=(exc_type, exc, tb))
+        for h in handlers:
+            h.flush()
+
+    sys.excepthook = _hook
+    return logger
 
 
 @contextmanager

@@ -137,3 +137,47 @@ def solver_config(cfg: dict):
     d["load_n"] = float(cfg.get("load_n", d["load_n"]))
     d.update(cfg.get("overrides") or {})
     return SolverConfig.from_dict(d, source="config solver.overrides")
+
+
+def file_digest(path: str | Path, n: int = 12) -> str:
+    """Short SHA-256 of a file's bytes (cache keys: a regenerated pavement invalidates its FE evaluations)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()[:n]
+
+
+def config_digest(obj, n: int = 12) -> str:
+    """Short SHA-256 of a JSON-serialisable object (sorted keys)."""
+    import hashlib
+    import json
+
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:n]
+
+
+def site_simulator(pavement_npz: str | Path, solver_cfg: dict, cache_path: str | Path, site: str):
+    """FE simulator callback ``(speed_kmh, law) -> FEOutcome`` for one site, behind its per-site cache.
+
+    The cache key holds the pavement file's digest and the resolved solver configuration's digest, so changing
+    either never reuses a stale simulation, and a rerun or resumed run never repeats one.
+    """
+    from dataclasses import asdict
+
+    from .calibration import FECache, fe_simulator
+    from .reconstruct import Heightfield
+
+    hf = Heightfield.from_npz(pavement_npz)
+    scfg = solver_config(solver_cfg)
+    key = {k: v for k, v in asdict(scfg).items() if k not in ("progress_every_s", "trace_every", "vtu_frames",
+                                                             "blas_threads")}
+    cache = FECache(cache_path, site, pavement=file_digest(pavement_npz), solver=config_digest(key))
+    return cache.wrap(fe_simulator(hf, scfg)), cache, scfg
+
+
+def measured_points(dft_points, site: str) -> dict[float, float]:
+    """``{speed_kmh: mu}`` of one site from the ingest's DFT points table."""
+    d = dft_points[dft_points["site"] == site]
+    return {float(v): float(m) for v, m in zip(d["speed_kmh"], d["mu"])}

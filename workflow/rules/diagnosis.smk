@@ -12,8 +12,8 @@ rule diagnosis:
         wide=f"{RESULTS}/texture/campaign.parquet",
         params=f"{RESULTS}/calibration/parameters.parquet",
         validation=f"{RESULTS}/calibration/validation.parquet",
-        fe_predictions=expand(f"{REG}/fe/{{site}}.parquet", site=TEST_SITES),
-        predicted_params=f"{REG}/test_parameters.csv",
+        cv_predictions=f"{REG}/cv_predictions.csv",
+        best_model=f"{REG}/best_model.txt",
     output:
         residuals=f"{DIAG}/residuals.parquet",
         causes=f"{DIAG}/causes.json",
@@ -28,8 +28,8 @@ rule diagnosis:
     params:
         cfg=config["diagnosis"],
         calibration_method=config["regression"]["calibration_method"],
-        train=TRAIN_SITES,
-        test=TEST_SITES,
+        calibration_speeds=config["speeds"]["calibration_kmh"],
+        validation_speeds=config["speeds"]["validation_kmh"],
     log:
         "logs/diagnosis.log",
     threads: 1

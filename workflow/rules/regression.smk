@@ -68,6 +68,7 @@ rule figure11:
     input:
         tables=expand(f"{REG}/fe/{{site}}.parquet", site=TEST_SITES),
         dft=f"{RESULTS}/ingest/dft_points.parquet",
+        best_model=f"{REG}/best_model.txt",
     output:
         table=report(f"{REG}/figure11_errors.csv", caption="../report/figure11.rst", category="4 Regression"),
         summary=f"{REG}/figure11_summary.csv",

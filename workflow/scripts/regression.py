@@ -20,7 +20,7 @@ design = regression.assemble_design(wide, friction, campaign_file=snakemake.inpu
 val = pd.read_parquet(snakemake.input.validation)
 val = val[val["method"] == cfg["calibration_method"]].merge(friction, on="site")
 mu = [ExponentialDecay(r.mu_s, r.mu_k, r.alpha).mu_kmh(r.speed_kmh) for r in val.itertuples()]
-g = pd.DataFrame({"site": val["site"], "speed_kmh": val["speed_kmh"], "g": val["sn"].to_numpy() / mu})
+g = pd.DataFrame({"site": val["site"], "speed_kmh": val["speed_kmh"], "g": val["sn_sim"].to_numpy() / mu})
 measured = pd.read_parquet(snakemake.input.dft)[["site", "speed_kmh", "mu"]]
 
 n_train = len(design.X) - len(snakemake.params.test)

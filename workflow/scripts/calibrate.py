@@ -1,0 +1,36 @@
+"""Snakemake adapter: back-calculate one site's friction law with one method (study | ours)."""
+import pandas as pd
+
+from skidsim import calibration
+from skidsim.runlog import setup_logging, write_parquet
+from skidsim.workflow_support import measured_points, site_simulator
+
+log = setup_logging(snakemake.log[0])
+site, method = snakemake.wildcards.site, snakemake.wildcards.method
+cfg = snakemake.params.calibration
+simulate, cache, scfg = site_simulator(snakemake.input.pavement, snakemake.params.solver, snakemake.params.cache,
+                                       site)
+log.info("%s: method %s, solver element %.2f mm, slide %.1f mm, %d cached FE evaluations", site, method,
+         scfg.element_mm, scfg.slide_length_mm, len(cache))
+points = pd.read_parquet(snakemake.input.dft)
+measured = measured_points(points, site)
+speeds = [float(v) for v in snakemake.params.speeds]
+if method == "study":
+    c = cfg["study"]
+    intervals = {k: tuple(v) for k, v in c["intervals"].items()}
+    start = (c["start"]["mu_s"], c["start"]["mu_k"], c["start"]["alpha"])
+    order = (("mu_k", max(speeds)), ("mu_s", min(speeds)), ("alpha", sorted(speeds)[1]))
+    result = calibration.calibrate_study(simulate, {v: measured[v] for v in speeds}, intervals=intervals,
+                                         start=start, tol=c["tol"], max_iter=c["max_iter"], order=order,
+                                         source=snakemake.input.dft)
+else:
+    c = cfg["ours"]
+    traces = pd.read_parquet(snakemake.input.traces)
+    trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
+    result = calibration.calibrate_fast(simulate, trace, speeds_kmh=speeds, tol=c["tol"],
+                                        max_fe_runs=c["max_fe_runs"], fit_range_kmh=tuple(c["fit_range_kmh"]) if c.get("fit_range_kmh") else None,
+                                        source=snakemake.input.traces)
+log.info("%s %s: %s; %d FE runs, %d steps, converged=%s %s", site, method, result.params, result.n_fe_runs,
+         result.n_steps, result.converged, result.message)
+write_parquet(snakemake.output.history, result.history.assign(site=site, method=method))
+result.to_json(snakemake.output.result)

@@ -1,0 +1,34 @@
+"""Snakemake adapter: Table 2, the method comparison (FE runs, steps, wall time, fit), Figure 10, curves."""
+from pathlib import Path
+
+import pandas as pd
+
+from skidsim import calibration
+from skidsim.plotting.calibration import plot_calibration_curves, plot_figure10
+from skidsim.runlog import setup_logging, write_csv, write_parquet
+
+log = setup_logging(snakemake.log[0])
+methods = snakemake.params.methods
+results = {}
+for path in snakemake.input.calibrations:
+    site = Path(path).parent.name
+    method = Path(path).stem.removeprefix("calibration_")
+    results.setdefault(site, {})[method] = calibration.CalibrationResult.from_json(path)
+vtable = pd.concat([pd.read_parquet(p) for p in snakemake.input.validations], ignore_index=True)
+comparison = calibration.comparison_table(results, vtable, methods=methods)
+t2 = calibration.table2(results, methods=methods)
+stats = calibration.figure10_statistics(vtable)
+params = pd.DataFrame([{"site": s, "method": m, "mu_s": r.params.mu_s, "mu_k": r.params.mu_k,
+                        "alpha": r.params.alpha, "converged": r.converged}
+                       for s, per in results.items() for m, r in per.items()])
+traces = pd.read_parquet(snakemake.input.traces)
+measured = {s: g[["speed_kmh", "mu"]].sort_values("speed_kmh") for s, g in traces.groupby("site")}
+runs = {s: {m: g[["speed_kmh", "sn_sim"]] for m, g in gs.groupby("method")} for s, gs in vtable.groupby("site")}
+write_csv(snakemake.output.table2, t2)
+write_csv(snakemake.output.comparison, comparison)
+write_csv(snakemake.output.stats, stats)
+write_parquet(snakemake.output.validation, vtable)
+write_parquet(snakemake.output.params, params)
+plot_figure10(vtable, snakemake.output.figure10)
+plot_calibration_curves(results, measured, snakemake.output.curves, runs=runs)
+log.info("\n%s", stats.to_string())

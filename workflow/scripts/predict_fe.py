@@ -1,0 +1,25 @@
+"""Snakemake adapter: FE simulation of a held-out site with friction parameters predicted from its texture."""
+import pandas as pd
+
+from skidsim import calibration
+from skidsim.friction import ExponentialDecay
+from skidsim.runlog import setup_logging, write_parquet
+from skidsim.workflow_support import site_simulator
+
+log = setup_logging(snakemake.log[0])
+site = snakemake.wildcards.site
+simulate, cache, _ = site_simulator(snakemake.input.pavement, snakemake.params.solver, snakemake.params.cache, site)
+pred = pd.read_csv(snakemake.input.predictions)
+pred = pred[pred["site"].astype(str) == site]
+if pred.empty:
+    raise RuntimeError(f"{snakemake.input.predictions}: no predicted parameters for held-out site {site}")
+parts = []
+for row in pred.itertuples(index=False):
+    law = ExponentialDecay(max(row.mu_s, 0.0), max(row.mu_k, 0.0), max(row.alpha, 0.0))
+    df = calibration.simulate_speeds(simulate, law, [float(v) for v in snakemake.params.speeds])
+    df.insert(0, "model", row.model)
+    df.insert(0, "site", site)
+    df["mu_s"], df["mu_k"], df["alpha"] = law.mu_s, law.mu_k, law.alpha
+    parts.append(df)
+    log.info("%s %s: %s", site, row.model, df[["speed_kmh", "sn_sim"]].to_dict("list"))
+write_parquet(snakemake.output.table, pd.concat(parts, ignore_index=True))
