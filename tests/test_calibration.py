@@ -1,0 +1,395 @@
+"""Tests of skidsim.calibration with surrogate simulators (no FE).
+
+Surrogates: SN = g(v, mu) * mu(v) with known parameters; step counts of the real solver's schedule
+(114.3 mm slide at 0.8 us: 25.7k steps at 20 km/h, 12.9k at 40, 8.6k at 60).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skidsim.calibration import (CalibrationError, CalibrationResult, FECache, FEOutcome, aitken_three_point,
+                                 calibrate_fast, calibrate_study, comparison_table, figure10_statistics,
+                                 fit_exponential_decay, fit_statistics, measured_at, simulate_speeds, table2,
+                                 validation_table)
+from skidsim.errors import InputError
+from skidsim.friction import ExponentialDecay
+
+TRUTH = ExponentialDecay(mu_s=0.62, mu_k=0.38, alpha=0.12)
+
+
+def steps_for(speed_kmh: float) -> int:
+    """Explicit steps to slide 114.3 mm at 0.8 us."""
+    return int(round(0.1143 / (speed_kmh / 3.6) / 0.8e-6))
+
+
+class Surrogate:
+    """SN = g(v, mu) * mu(v) (+ optional noise from a seeded stream); counts calls and steps."""
+
+    def __init__(self, g=lambda v, mu: 1.07, noise_sd=0.0, seed=0, fail_after=None):
+        self.g = g
+        self.noise_sd = noise_sd
+        self.rng = np.random.default_rng(seed)
+        self.calls = []
+        self.steps = 0
+        self.fail_after = fail_after
+
+    def __call__(self, speed_kmh, law):
+        if self.fail_after is not None and len(self.calls) >= self.fail_after:
+            raise RuntimeError("simulated crash")
+        mu = float(law.mu_kmh(speed_kmh))
+        sn = self.g(speed_kmh, mu) * mu
+        if self.noise_sd:
+            sn += self.rng.normal(0.0, self.noise_sd)
+        n = steps_for(speed_kmh)
+        self.calls.append((speed_kmh, law))
+        self.steps += n
+        return FEOutcome(sn=sn, n_steps=n, wall_s=n * 1e-6)
+
+
+def trace(law, g=lambda v, mu: 1.0, speeds=np.arange(5.0, 85.0, 1.0), noise_sd=0.0, seed=1):
+    mu = np.array([g(v, float(law.mu_kmh(v))) * float(law.mu_kmh(v)) for v in speeds])
+    mu = mu + np.random.default_rng(seed).normal(0.0, noise_sd, mu.size) if noise_sd else mu
+    return pd.DataFrame({"speed_kmh": speeds, "mu": mu})
+
+
+# ------------------------------------------------------------------------------------------ study method
+
+def test_study_bisection_hand_traced_sequence():
+    # start alpha 0.1 s/m; SN = mu(v) (g = 1). Weights exp(-0.1 s): 60 km/h 0.18888, 20 km/h 0.57375, 40 km/h 0.32919.
+    # mu_k @60 (mu_s 0.4): SN = 0.81112 mu_k + 0.075552, target 0.30:
+    #   0.35 -> 0.3594 (+19.8 %, high: hi=0.35); 0.175 -> 0.2175 (-27.5 %, lo=0.175); 0.2625 -> 0.2885 (-3.8 %) stop.
+    # mu_s @20 (mu_k 0.2625): SN = 0.2625 + (mu_s - 0.2625) 0.57375, target 0.55:
+    #   0.425 -> 0.3557 (-35 %, lo); 0.6375 -> 0.4777 (-13.2 %, lo); 0.74375 -> 0.5386 (-2.1 %) stop.
+    # alpha @40 (mu_s 0.74375 > mu_k: decreasing): SN = 0.2625 + 0.48125 exp(-11.111 alpha), target 0.30:
+    #   0.5 -> 0.2644 (-11.9 %, too low -> smaller alpha: hi=0.5); 0.25 -> 0.2924 (-2.5 %) stop.
+    sim = Surrogate(g=lambda v, mu: 1.0)
+    res = calibrate_study(sim, {20: 0.55, 40: 0.30, 60: 0.30}, start=(0.4, 0.35, 0.1))
+    h = res.history
+    assert list(h["stage"]) == ["mu_k"] * 3 + ["mu_s"] * 3 + ["alpha"] * 2
+    assert list(h["speed_kmh"]) == [60.0] * 3 + [20.0] * 3 + [40.0] * 2
+    mids = [h.loc[i, p] for i, p in enumerate(["mu_k"] * 3 + ["mu_s"] * 3 + ["alpha"] * 2)]
+    assert mids == pytest.approx([0.35, 0.175, 0.2625, 0.425, 0.6375, 0.74375, 0.5, 0.25], abs=1e-12)
+    # parameters not yet searched are held at the start values
+    assert (h.loc[:2, "mu_s"] == 0.4).all() and (h.loc[:5, "alpha"] == 0.1).all()
+    assert res.converged
+    assert (res.params.mu_s, res.params.mu_k, res.params.alpha) == pytest.approx((0.74375, 0.2625, 0.25))
+    # it stopped at the first evaluation inside 10 % in every search, never before
+    for stage, g in h.groupby("stage"):
+        assert (g["rel_err"].abs().iloc[:-1] >= 0.10).all() and abs(g["rel_err"].iloc[-1]) < 0.10
+    assert res.n_fe_runs == 8 == len(sim.calls)
+
+
+@pytest.mark.parametrize("mu_s, mu_k, target, decisions", [
+    # decreasing in alpha (mu_s > mu_k): SN = 0.3 + 0.4 exp(-11.111 alpha), target 0.35, tol 0.1 %:
+    # 0.5 -> 0.3015 (low: hi), 0.25 -> 0.3249 (low: hi), 0.125 -> 0.3997 (high: lo), 0.1875 -> 0.3498 stop
+    (0.7, 0.3, 0.35, None),
+    # increasing in alpha (mu_s < mu_k): SN = 0.7 - 0.4 exp(-11.111 alpha), target 0.65:
+    # 0.5 -> 0.6985 (high: hi), 0.25 -> 0.6751 (high: hi), 0.125 -> 0.6003 (low: lo), 0.1875 -> 0.6502 stop
+    (0.3, 0.7, 0.65, None),
+])
+def test_study_alpha_direction_follows_sign_of_mus_minus_muk(mu_s, mu_k, target, decisions):
+    sim = Surrogate(g=lambda v, mu: 1.0)
+    res = calibrate_study(sim, {40: target}, start=(mu_s, mu_k, 0.6), order=[("alpha", 40.0)], tol=0.001)
+    assert list(res.history["alpha"]) == pytest.approx([0.5, 0.25, 0.125, 0.1875], abs=1e-12)
+    assert res.converged and abs(res.history["rel_err"].iloc[-1]) < 0.001
+
+
+def test_study_max_iter_flags_and_raises():
+    # with the study's start alpha 0.6 s/m, mu_s weighs exp(-3.33) = 3.6 % at 20 km/h: DFT20 = 0.6 is out of reach
+    meas = {20: 0.60, 40: 0.50, 60: 0.42}
+    sim = Surrogate(g=lambda v, mu: 1.0)
+    res = calibrate_study(sim, meas, max_iter=7)
+    assert not res.converged
+    assert (res.history["stage"] == "mu_s").sum() == 7
+    assert "mu_s at 20 km/h" in res.message and "max_iter=7" in res.message
+    # kept the best evaluated mu_s: the upper end of the sequence toward 0.85
+    mus = res.history.loc[res.history["stage"] == "mu_s", "mu_s"]
+    assert res.params.mu_s == pytest.approx(mus.max()) and mus.max() < 0.85
+    assert res.history.loc[res.history["stage"] == "alpha", "mu_s"].iloc[0] == pytest.approx(mus.max())
+    with pytest.raises(CalibrationError, match=r"mu_s at 20 km/h.*max_iter=7"):
+        calibrate_study(Surrogate(g=lambda v, mu: 1.0), meas, max_iter=7, on_max_iter="raise")
+
+
+def test_study_rejects_missing_measured_speed():
+    with pytest.raises(InputError, match="40 km/h"):
+        calibrate_study(Surrogate(), {20: 0.5, 60: 0.4, 70: 0.38}, source="dft/E1.csv")
+
+
+# ------------------------------------------------------------------------------------------ fast method
+
+@pytest.mark.parametrize("curve", ["trace", "dict"])
+@pytest.mark.parametrize("g, model, pilot, runs, batches", [
+    # constant g: the pilot at 60 km/h finds it, the first full batch verifies exactly (both models)
+    (lambda v, mu: 1.07, "ratio", "fastest", 4, 1),
+    (lambda v, mu: 1.07, "slip", "fastest", 4, 1),
+    # g weakly, linearly speed dependent: the pilot's level is off at 20 km/h by 0.04 mu, one more batch
+    (lambda v, mu: 1.07 - 0.001 * (v - 40.0), "ratio", "fastest", 7, 2),
+    # no pilot: a batch at the g = 1 fit, then the verifying batch
+    (lambda v, mu: 1.07 - 0.001 * (v - 40.0), "ratio", None, 6, 2),
+])
+def test_fast_recovers_exact_parameters(curve, g, model, pilot, runs, batches):
+    sim = Surrogate(g=g)
+    meas = trace(TRUTH, g) if curve == "trace" else {v: g(v, 0) * float(TRUTH.mu_kmh(v)) for v in (20, 40, 60)}
+    res = calibrate_fast(sim, meas, tol=1e-6, pilot_speed_kmh=pilot, model=model)
+    p = res.params
+    assert (p.mu_s, p.mu_k, p.alpha) == pytest.approx((TRUTH.mu_s, TRUTH.mu_k, TRUTH.alpha), abs=1e-3)
+    assert res.converged
+    assert res.n_fe_runs == runs == len(sim.calls)
+    assert res.n_steps == sim.steps == (runs - 3 * batches) * steps_for(60) + batches * sum(
+        steps_for(v) for v in (20, 40, 60))
+
+
+def test_fast_converges_with_mu_dependent_g_and_noise():
+    g = lambda v, mu: (1.04 + 0.0015 * (v - 40.0)) * (1.0 + 0.4 * (mu - 0.45))
+    meas = trace(TRUTH, g, noise_sd=0.004, seed=3)
+    sim = Surrogate(g=g, noise_sd=0.002, seed=5)
+    res = calibrate_fast(sim, meas, tol=0.01)
+    assert res.converged, res.message
+    last = res.history[res.history["iteration"] == res.history["iteration"].max()]
+    assert (np.abs(last["sn_sim"] - last["sn_pred"]) <= 0.01).all()
+    # the FE-simulated SN at the final params matches the measured curve to the DFT's repeatability
+    assert np.abs(last["sn_sim"] - last["sn_measured"]).max() < 0.02
+    assert res.n_fe_runs <= 9
+    assert abs(res.params.mu_k - TRUTH.mu_k) < 0.03 and abs(res.params.mu_s - TRUTH.mu_s) < 0.05
+
+
+def test_fast_budget_exhausted_is_flagged():
+    g = lambda v, mu: 1.0 + 3.0 * (mu - 0.45) ** 2 + 0.2 * np.sin(40 * mu)  # far from the g * mu model
+    res = calibrate_fast(Surrogate(g=g), trace(TRUTH), tol=1e-9, max_fe_runs=6)
+    assert not res.converged and res.n_fe_runs <= 6
+    assert "max_fe_runs=6" in res.message
+
+
+def test_aitken_matches_bounded_least_squares_on_three_points():
+    y = [float(TRUTH.mu_kmh(v)) for v in (20, 40, 60)]
+    a = aitken_three_point([20, 40, 60], y)
+    b, sse = fit_exponential_decay([20, 40, 60], y)
+    assert (a.mu_s, a.mu_k, a.alpha) == pytest.approx((0.62, 0.38, 0.12), abs=1e-12)
+    assert (b.mu_s, b.mu_k, b.alpha) == pytest.approx((a.mu_s, a.mu_k, a.alpha), abs=1e-6)
+    assert sse < 1e-20
+    assert aitken_three_point([20, 40, 60], [0.5, 0.45, 0.40]) is None  # linear: not convex
+    assert aitken_three_point([20, 40, 60], [0.4, 0.45, 0.40]) is None  # not monotone
+
+
+def test_bounded_fit_on_non_monotone_data_beats_brute_force_grid():
+    v = np.array([20.0, 25, 30, 35, 40, 45, 50, 55, 60])
+    y = np.array([0.52, 0.55, 0.50, 0.47, 0.49, 0.44, 0.45, 0.41, 0.43])  # noisy, not monotone
+    law, sse = fit_exponential_decay(v, y)
+    assert 0 <= law.mu_s <= 0.85 and 0 <= law.mu_k <= 0.7 and 0 <= law.alpha <= 1
+    assert sse == pytest.approx(float(np.sum((law.mu_kmh(v) - y) ** 2)), rel=1e-9)
+    ms, mk, al = np.meshgrid(np.linspace(0, 0.85, 35), np.linspace(0, 0.7, 29), np.linspace(0, 1, 41), indexing="ij")
+    s = v / 3.6
+    pred = mk[..., None] + (ms - mk)[..., None] * np.exp(-al[..., None] * s)
+    grid_sse = np.sum((pred - y) ** 2, axis=-1)
+    assert sse <= grid_sse.min() + 1e-12
+    # data above the bounds: the fit sits on the bound
+    law_hi, _ = fit_exponential_decay(v, np.full(v.size, 0.95))
+    assert law_hi.mu_s == pytest.approx(0.85) or law_hi.mu_k == pytest.approx(0.7)
+
+
+def test_fast_uses_at_most_a_third_of_the_study_steps_for_a_better_validation_fit():
+    g = lambda v, mu: 1.05
+    meas = trace(TRUTH, g)
+    study = calibrate_study(Surrogate(g=g), meas)
+    ours = calibrate_fast(Surrogate(g=g), meas)
+    assert ours.n_steps <= study.n_steps / 3
+    runs = {"S1": {m: simulate_speeds(Surrogate(g=g), r.params, (20, 30, 40, 50, 60, 70))
+                   for m, r in (("study", study), ("ours", ours))}}
+    vt = validation_table(runs, {"S1": meas})
+    st = figure10_statistics(vt).set_index(["method", "kind"])
+    assert st.loc[("ours", "validation"), "rmse"] <= st.loc[("study", "validation"), "rmse"]
+    assert st.loc[("ours", "validation"), "rmse"] < 1e-3
+
+
+# ------------------------------------------------------------------------------------------ cache
+
+def test_cache_second_run_performs_no_new_evaluation(tmp_path):
+    path = tmp_path / "cache" / "E1.parquet"
+    meas = {20: 0.55, 40: 0.30, 60: 0.30}
+    sim1 = Surrogate(g=lambda v, mu: 1.0)
+    c1 = FECache(path, site="E1", mesh="0.5mm", solver="v1")
+    r1 = calibrate_study(c1.wrap(sim1), meas, start=(0.4, 0.35, 0.1))
+    assert c1.n_new == 8 and len(c1) == 8 and path.exists()
+    sim2 = Surrogate(g=lambda v, mu: 1.0)
+    c2 = FECache(path, site="E1", mesh="0.5mm", solver="v1")
+    r2 = calibrate_study(c2.wrap(sim2), meas, start=(0.4, 0.35, 0.1))
+    assert sim2.calls == [] and c2.n_hits == 8 and c2.n_new == 0
+    assert r2.params == r1.params
+    assert r2.history["cached"].all() and r2.n_steps_run == 0 and r2.n_cache_hits == 8
+    assert r2.n_steps == r1.n_steps == sim1.steps  # the method's cost survives the cache
+    # another mesh key: nothing matches
+    sim3 = Surrogate(g=lambda v, mu: 1.0)
+    calibrate_study(FECache(path, site="E1", mesh="0.25mm", solver="v1").wrap(sim3), meas, start=(0.4, 0.35, 0.1))
+    assert len(sim3.calls) == 8
+    t = pd.read_parquet(path)
+    assert len(t) == 16 and set(t["key_mesh"]) == {"0.5mm", "0.25mm"}
+    assert t["n_steps"].sum() == 2 * sim1.steps
+
+
+def test_cache_resumes_a_killed_run(tmp_path):
+    path = tmp_path / "E2.parquet"
+    g = lambda v, mu: 1.07 - 0.001 * (v - 40.0)  # 7 evaluations: pilot + two batches
+    meas = trace(TRUTH, g)
+    crashing = Surrogate(g=g, fail_after=5)
+    with pytest.raises(RuntimeError, match="simulated crash"):
+        calibrate_fast(FECache(path, site="E2").wrap(crashing), meas)
+    assert len(pd.read_parquet(path)) == 5  # every finished evaluation was written at once
+    sim = Surrogate(g=g)
+    res = calibrate_fast(FECache(path, site="E2").wrap(sim), meas)
+    assert res.n_fe_runs == 7 and len(sim.calls) == 2 and res.n_cache_hits == 5
+    assert res.n_steps_run == sim.steps and res.n_steps == sim.steps + crashing.steps
+    assert not [f for f in tmp_path.iterdir() if f.name.endswith(".tmp")]
+
+
+def test_cache_rejects_a_table_without_required_columns(tmp_path):
+    path = tmp_path / "bad.parquet"
+    pd.DataFrame({"site": ["E1"], "speed_kmh": [20.0]}).to_parquet(path)
+    with pytest.raises(InputError, match="bad.parquet.*column 'mu_s'"):
+        FECache(path, site="E1")
+
+
+# ------------------------------------------------------------------------------------------ tables and stats
+
+def test_fit_statistics_hand_values():
+    st = fit_statistics([1.0, 2.0, 3.0], [1.0, 2.0, 4.0])
+    assert st["n"] == 3
+    assert st["rmse"] == pytest.approx(np.sqrt(1 / 3))
+    assert st["mae"] == pytest.approx(1 / 3)
+    assert st["r2"] == pytest.approx(1 - 9 / 42)  # SST of (1, 2, 4) = 42/9
+    assert st["max_rel_err"] == pytest.approx(0.25)
+    from scipy.stats import pearsonr
+    assert st["r2_pearson"] == pytest.approx(pearsonr([1, 2, 3], [1, 2, 4])[0] ** 2)
+
+
+def test_comparison_table_totals_and_table2(tmp_path):
+    results, runs, meas = {}, {}, {}
+    for i, site in enumerate(["A", "B"]):
+        g = lambda v, mu, i=i: 1.0 + 0.05 * i
+        truth = ExponentialDecay(0.6 + 0.05 * i, 0.35, 0.1)
+        meas[site] = trace(truth, g)
+        results[site] = {"study": calibrate_study(Surrogate(g=g), meas[site]),
+                         "ours": calibrate_fast(Surrogate(g=g), meas[site])}
+        runs[site] = {m: simulate_speeds(Surrogate(g=g), r.params, (20, 30, 40, 50, 60, 70))
+                      for m, r in results[site].items()}
+    vt = validation_table(runs, meas)
+    assert set(vt["kind"]) == {"calibration", "validation"} and len(vt) == 2 * 2 * 6
+    cmp = comparison_table(results, vt)
+    tot = cmp.set_index("site").loc["TOTAL"]
+    for m in ("study", "ours"):
+        assert tot[f"{m}_steps"] == sum(results[s][m].n_steps for s in "AB")
+        assert tot[f"{m}_fe_runs"] == sum(results[s][m].n_fe_runs for s in "AB")
+        sub = vt[(vt["method"] == m) & (vt["kind"] == "validation")]
+        assert tot[f"{m}_rmse_val"] == pytest.approx(fit_statistics(sub["sn_sim"], sub["mu_measured"])["rmse"])
+    assert tot["steps_ratio"] == pytest.approx(tot["ours_steps"] / tot["study_steps"])
+    assert tot["ours_converged"] == sum(results[s]["ours"].converged for s in "AB")
+    cmp.to_parquet(tmp_path / "cmp.parquet")  # the workflow writes it: plain column types
+    table2(results).to_parquet(tmp_path / "t2.parquet")
+    vt.to_parquet(tmp_path / "vt.parquet")
+    t2 = table2(results).set_index("site")
+    assert t2.loc["B", "ours_mu_s"] == pytest.approx(0.65, abs=1e-3)
+    assert t2.loc["A", "study_mu_k"] == results["A"]["study"].params.mu_k
+    # JSON round trip keeps parameters, history and costs
+    p = tmp_path / "A" / "ours.json"
+    results["A"]["ours"].to_json(p)
+    back = CalibrationResult.from_json(p)
+    assert back.params == results["A"]["ours"].params and back.n_steps == results["A"]["ours"].n_steps
+    assert json.loads(p.read_text())["summary"]["n_fe_runs"] == results["A"]["ours"].n_fe_runs
+    ps = tmp_path / "A" / "study.json"
+    results["A"]["study"].to_json(ps)  # its fit_rmse is NaN (final law not simulated at 20/60 km/h): null in JSON
+    doc = json.loads(ps.read_text(), parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+    assert doc["summary"]["fit_rmse"] is None
+    back_s = CalibrationResult.from_json(ps)
+    assert back_s.params == results["A"]["study"].params and back_s.n_fe_runs == results["A"]["study"].n_fe_runs
+    assert list(back_s.history["stage"]) == list(results["A"]["study"].history["stage"])
+    # figures
+    from skidsim.plotting.calibration import plot_calibration_curves, plot_figure10
+    plot_figure10(vt, tmp_path / "fig10.png")
+    plot_calibration_curves(results, meas, tmp_path / "curves.png", runs=runs)
+    for f in ("fig10.png", "curves.png"):
+        assert (tmp_path / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_measured_at_conventions_and_errors():
+    df = pd.DataFrame({"speed_kmh": [10.0, 20.0, 30.0, 30.0], "mu": [0.6, 0.5, 0.3, 0.5]})  # duplicate averaged
+    assert measured_at(df, [15.0, 30.0]) == pytest.approx([0.55, 0.4])
+    lin = pd.DataFrame({"speed_kmh": np.arange(10.0, 31.0), "mu": 0.7 - 0.01 * np.arange(10.0, 31.0)})
+    assert measured_at(lin, [19.5], window_kmh=3.0) == pytest.approx([0.505])
+    with pytest.raises(InputError, match="covering 40 km/h"):
+        measured_at(df, [40.0])
+    with pytest.raises(InputError, match="column 'mu'"):
+        measured_at(pd.DataFrame({"speed_kmh": [20.0], "mu_dft": [0.5]}), [20.0], source="dft/X.csv")
+    with pytest.raises(InputError, match=r"row 1, column 'mu'"):
+        measured_at(pd.DataFrame({"speed_kmh": [20.0, 30.0], "mu": [0.5, -0.1]}), [20.0])
+
+
+def test_box_least_squares_matches_scipy_lsq_linear():
+    from scipy.optimize import lsq_linear
+
+    from skidsim.calibration import _box_ls2_many
+    rng = np.random.default_rng(11)
+    lo, hi = np.array([0.0, 0.0]), np.array([0.7, 0.85])
+    c1 = rng.uniform(0, 1.2, (40, 9))
+    c2 = rng.uniform(0, 1.2, (40, 9))
+    z = rng.uniform(-0.2, 1.2, 9)
+    p, sse = _box_ls2_many(c1, c2, z, lo, hi)
+    for k in range(40):
+        X = np.column_stack([c1[k], c2[k]])
+        ref = lsq_linear(X, z, bounds=(lo, hi), tol=1e-14, method="bvls")
+        assert sse[k] == pytest.approx(2 * ref.cost, rel=1e-8, abs=1e-14)
+        assert p[k] == pytest.approx(ref.x, abs=1e-7)
+
+
+def test_fast_calibration_with_the_real_solver_on_a_flat_plane(tmp_path):
+    """Integration: the FE callback around skidsim.solver.simulate; on a flat plane SN = mu (g = 1)."""
+    from skidsim.calibration import fe_simulator
+    from skidsim.solver import FlatPlane, SolverConfig
+    cfg = SolverConfig(element_mm=2.0, slide_length_mm=6.0, window_start_mm=2.0, preload_time_s=0.6e-3)
+    cache = FECache(tmp_path / "flat.parquet", site="flat", solver="fast-2mm")
+    res = calibrate_fast(cache.wrap(fe_simulator(FlatPlane(), cfg)), trace(TRUTH), tol=0.005)
+    assert res.converged, res.message
+    assert res.n_fe_runs == 4  # pilot + one verifying batch: g = 1 within the tolerance
+    assert (res.params.mu_s, res.params.mu_k) == pytest.approx((TRUTH.mu_s, TRUTH.mu_k), abs=0.02)
+    assert res.params.alpha == pytest.approx(TRUTH.alpha, abs=0.02)
+    t = cache.table
+    assert len(t) == 4 and (t["n_steps"] > 0).all() and t["n_steps"].sum() == res.n_steps
+
+
+class SlipSurrogate(Surrogate):
+    """SN = G mu(s + delta(v)): the law sampled at an effective slip speed above the sliding speed (m/s)."""
+
+    def __init__(self, G=1.13):
+        super().__init__()
+        self.G = G
+
+    @staticmethod
+    def slip_ms(speed_kmh):
+        return speed_kmh / 3.6 + 3.0 - 0.045 * (speed_kmh - 20.0)
+
+    def __call__(self, speed_kmh, law):
+        n = steps_for(speed_kmh)
+        self.calls.append((speed_kmh, law))
+        self.steps += n
+        return FEOutcome(sn=self.G * float(law.mu(self.slip_ms(speed_kmh))), n_steps=n, wall_s=0.0)
+
+
+def test_fast_slip_model_recovers_law_sampled_at_effective_slip_speed():
+    v = np.arange(5.0, 85.0)
+    meas = pd.DataFrame({"speed_kmh": v, "mu": 1.13 * TRUTH.mu(SlipSurrogate.slip_ms(v))})
+    sim = SlipSurrogate()
+    res = calibrate_fast(sim, meas, model="slip", tol=1e-6)
+    assert res.converged and res.n_fe_runs == 7  # constant-law pilot + two batches
+    assert res.history["stage"].iloc[0] == "pilot" and res.history["alpha"].iloc[0] == 0.0
+    p = res.params
+    assert (p.mu_s, p.mu_k, p.alpha) == pytest.approx((TRUTH.mu_s, TRUTH.mu_k, TRUTH.alpha), abs=1e-3)
+    # the recovered offsets are the surrogate's slip excess (km/h)
+    d = np.array(res.settings["slip_offsets_kmh"])
+    expected = np.array([SlipSurrogate.slip_ms(s) * 3.6 - s for s in (20.0, 40.0, 60.0)])
+    assert d == pytest.approx(expected, abs=1e-3)
+    # the ratio model needs more FE runs for the same surrogate
+    ratio = calibrate_fast(SlipSurrogate(), meas, model="ratio", tol=1e-6)
+    assert ratio.n_fe_runs > res.n_fe_runs
