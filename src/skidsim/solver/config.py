@@ -1,0 +1,169 @@
+"""Solver configuration (:class:`SolverConfig`) and its presets.
+
+All fields are SI or carry their unit in the name. The two presets:
+
+* :meth:`SolverConfig.reference`: the study's model (0.5 mm elements, 114.3 mm slide, no mass scaling); the
+  benchmark case and the yardstick of the mesh study.
+* :meth:`SolverConfig.campaign`: the preset the calibration campaign runs (about 2-3 s of one core per evaluation
+  at 20 km/h); chosen from ``benchmarks/mesh_study.py`` and documented with its SN error in ``docs/solver.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+
+from skidsim.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    """Parameters of one explicit DFT-slider simulation.
+
+    Geometry (mm): ``slider_length_mm`` x ``slider_width_mm`` x ``slider_thickness_mm`` (ASTM E1911 slider,
+    20 x 16 x 6), meshed with cubes of about ``element_mm``.
+
+    Rubber: ``youngs_modulus_pa`` (Pa), ``poisson``, ``density_kg_m3`` (kg/m^3): long-term elastic constants.
+    ``prony_g`` / ``prony_tau_s``: optional Prony series on the shear modulus, g_i relative to the long-term
+    shear modulus, tau_i in s (empty: linear elastic).
+
+    Loading: ``load_n`` (N) is the normal load **on the one simulated slider** (ASTM E1911: 11.8 N per slider;
+    set 11.8/3 to read the figure as the total of three sliders). It is a dead load on the rigid holder (top
+    face), ramped in over ``preload_ramp_s`` (s, smooth cosine ramp) and then held; during this quasi-static
+    preload mass-proportional damping ``preload_damping_per_s`` (1/s, absolute velocity) removes the dynamic
+    response (dynamic relaxation). The preload ends when the total contact force is within ``preload_tolerance``
+    (fraction) of the load at two checks ``preload_check_s`` (s) apart, at the latest after ``preload_time_s``
+    (s; the result records the contact force actually reached).
+
+    Sliding: the top face (rigid holder) moves in x at the test speed (y velocity 0, one common vertical
+    velocity); the slider slides
+    ``slide_length_mm`` (the study's 114.3 mm). If the pavement strip is too short (slider length plus slide plus
+    ``edge_margin_mm`` at each end), the slide is shortened to fit when ``clamp_slide`` (the result records the
+    distance actually slid), else a :class:`ConfigError` is raised. ``slide_damping_per_s`` (1/s) is
+    mass-proportional damping of the velocity relative to the holder during sliding. Default 3e4 1/s: without it
+    the undamped elastic slider with Coulomb friction is *unstable* (friction-induced mode-coupling vibration:
+    on a flat plane with mu 0.4 the normal force oscillates at ~5 kHz with growing amplitude until the slider
+    bounces and SN drops to 0.31); 1e4 1/s is not enough, 3e4 1/s removes it (SN = mu to 1e-5). It acts like
+    a rubber loss (damping ratio c/(2 omega): 0.5 at 5 kHz, 0.05 at 50 kHz); set 0 to study the undamped model.
+    Its dissipation is reported as the ``damping`` energy. These dashpots connect the nodes to the *holder*
+    (velocity (v, 0, v_z,holder)), so they do not resist the vertical motion that follows the texture (dashpots
+    to the ground did, and carried up to 1.4 N of the 11.8 N load over a 20 mm window). The holder's own
+    vertical motion has a suspension dashpot to the ground, ``holder_damping_per_s`` (1/s) times the slider
+    mass (default 5e3 1/s, 11.5 N s/m): without it the bounce of the slider on its contacts, excited at the
+    start and by the texture, is undamped and short windows do not average the normal force to the load.
+
+    Steady window: SN is averaged over holder displacements from ``window_start_mm`` (after the start of
+    sliding: skips the start-up transient) to ``window_end_mm`` (``None``: the end of the slide).
+
+    Time step: ``dt_safety`` times the central-difference limit 2/omega_max, with omega_max from a power
+    iteration on the assembled slider plus the contact penalty bound. ``mass_scaling`` (>= 1) multiplies the
+    density (dt grows with its square root); time scaling is not offered (friction depends on slip speed).
+
+    Contact: penalty stiffness per bottom node ``penalty_scale * E * A_node / h_z`` (N/m; ``penalty_scale`` 1 is
+    the axial stiffness of the first element layer under the node).
+
+    ``blas_threads``: BLAS threads inside :func:`simulate` (via threadpoolctl when installed; ``None`` leaves the
+    setting alone). 1 is fastest for the small matrix products here and essential on a busy machine (measured:
+    multithreaded OpenBLAS made a 1 mm run 10x slower on 2 shared cores).
+
+    Output: ``trace_every`` (steps between trace rows), ``vtu_frames`` (number of VTU frames when a VTU
+    directory is given), ``progress_every_s`` (wall seconds between progress log lines).
+    """
+
+    element_mm: float = 0.5
+    slider_length_mm: float = 20.0
+    slider_width_mm: float = 16.0
+    slider_thickness_mm: float = 6.0
+    youngs_modulus_pa: float = 100e6
+    poisson: float = 0.45
+    density_kg_m3: float = 1200.0
+    prony_g: tuple[float, ...] = ()
+    prony_tau_s: tuple[float, ...] = ()
+    load_n: float = 11.8
+    slide_length_mm: float = 114.3
+    clamp_slide: bool = True
+    edge_margin_mm: float = 0.5
+    preload_time_s: float = 4.0e-3
+    preload_ramp_s: float = 0.2e-3
+    preload_check_s: float = 0.05e-3
+    preload_tolerance: float = 0.002
+    preload_damping_per_s: float = 1.5e4
+    slide_damping_per_s: float = 3.0e4
+    holder_damping_per_s: float = 5.0e3
+    blas_threads: int | None = 1
+    window_start_mm: float = 5.0
+    window_end_mm: float | None = None
+    dt_safety: float = 0.9
+    mass_scaling: float = 1.0
+    penalty_scale: float = 1.0
+    trace_every: int = 1
+    vtu_frames: int = 50
+    progress_every_s: float = 10.0
+
+    def __post_init__(self):
+        positive = ["element_mm", "slider_length_mm", "slider_width_mm", "slider_thickness_mm", "load_n",
+                    "slide_length_mm", "preload_time_s", "penalty_scale", "dt_safety", "progress_every_s"]
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"solver config field '{name}': expected > 0, got {getattr(self, name)!r}")
+        if not 0 < self.dt_safety <= 1:
+            raise ConfigError(f"solver config field 'dt_safety': expected 0 < dt_safety <= 1, got {self.dt_safety}")
+        if not self.mass_scaling >= 1:
+            raise ConfigError(f"solver config field 'mass_scaling': expected >= 1, got {self.mass_scaling}")
+        for name in ("preload_ramp_s", "preload_check_s", "preload_tolerance"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"solver config field '{name}': expected > 0, got {getattr(self, name)!r}")
+        if self.preload_damping_per_s < 0 or self.slide_damping_per_s < 0 or self.holder_damping_per_s < 0:
+            raise ConfigError("solver config fields 'preload_damping_per_s'/'slide_damping_per_s': expected >= 0 1/s")
+        if self.window_start_mm < 0 or (self.window_end_mm is not None and self.window_end_mm <= self.window_start_mm):
+            raise ConfigError("solver config fields 'window_start_mm'/'window_end_mm': expected 0 <= start < end mm, "
+                              f"got {self.window_start_mm}, {self.window_end_mm}")
+        if self.window_start_mm >= self.slide_length_mm:
+            raise ConfigError(f"solver config field 'window_start_mm': expected < slide_length_mm "
+                              f"({self.slide_length_mm}), got {self.window_start_mm}")
+        if int(self.trace_every) < 1 or int(self.vtu_frames) < 1:
+            raise ConfigError("solver config fields 'trace_every'/'vtu_frames': expected integers >= 1")
+        if self.edge_margin_mm < 0:
+            raise ConfigError(f"solver config field 'edge_margin_mm': expected >= 0 mm, got {self.edge_margin_mm}")
+        object.__setattr__(self, "prony_g", tuple(float(g) for g in self.prony_g))
+        object.__setattr__(self, "prony_tau_s", tuple(float(t) for t in self.prony_tau_s))
+
+    @classmethod
+    def reference(cls, **overrides) -> "SolverConfig":
+        """The study's model: 0.5 mm elements, 114.3 mm slide, no mass scaling (the benchmark case)."""
+        return cls(**overrides)
+
+    @classmethod
+    def campaign(cls, **overrides) -> "SolverConfig":
+        """The calibration-campaign preset (see docs/solver.md for its measured SN error and cost).
+
+        1.5 mm elements, the full 114.3 mm slide (window from 5 mm), no mass scaling. Short slides are not
+        representative (SN of a 20 mm window differed by up to 11 % from the full slide on a random texture:
+        the slider rests on a few asperities, so SN samples the path) and mass scaling biases SN upwards
+        (+1.6 % at factor 4, +5.8 % at 64 on a 1 mm mesh; the texture response is partly inertial), so the
+        saving comes from the element size alone.
+        Measured on RandomTexture(seed 0) with mu_s 0.4, mu_k 0.35, alpha 0.6 s/m: SN +2.2 / +3.1 / +4.7 % against
+        the reference preset at 20 / 40 / 60 km/h (a consistent upward bias), 3.4 s of one core at 20 km/h
+        (11,061 steps; 1.7 s / 1.2 s at 40 / 60 km/h with 5,855 / 4,120 steps).
+        """
+        base = dict(element_mm=1.5, slide_length_mm=114.3, window_start_mm=5.0, mass_scaling=1.0)
+        base.update(overrides)
+        return cls(**base)
+
+    @classmethod
+    def from_dict(cls, d: dict, *, source: str = "<config>") -> "SolverConfig":
+        """Build from a mapping (e.g. the workflow config's ``solver`` section); unknown keys raise ConfigError."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ConfigError(f"{source}: unknown solver config field(s) {unknown}; expected some of {sorted(names)}")
+        d = dict(d)
+        for key in ("prony_g", "prony_tau_s"):
+            if key in d and d[key] is not None:
+                d[key] = tuple(d[key])
+        return cls(**d)
+
+    def replace(self, **changes) -> "SolverConfig":
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,411 @@
+"""Explicit central-difference simulation of the DFT rubber slider on a rigid pavement.
+
+Model (details and conventions in docs/solver.md):
+
+* **Slider**: :class:`skidsim.slidermesh.SliderMesh` box, small-strain SRI hexahedra
+  (:mod:`skidsim.solver.material`), one 24 x 24 element matrix, slicing kernel (:mod:`skidsim.solver.kernel`),
+  row-sum lumped mass (optionally scaled by ``mass_scaling``). Small strain is exact for the rigid translation
+  (it is in the null space of K); the slider barely deforms (nominal strain ~4e-4).
+* **Time integration**: central difference (leapfrog): ``v(n+1/2) = v(n-1/2) + dt M^-1 f(n)``,
+  ``u(n+1) = u(n) + dt v(n+1/2)``. ``dt = dt_safety * 2 / omega_max``, ``omega_max^2 = lambda_max(M^-1 K)``
+  (power iteration on the assembled slider) + ``max_i k_i (1 + |grad z|^2_max) / m_i`` (contact penalty bound,
+  Weyl's inequality; the slope bound is sampled over the swept strip).
+* **Contact** (:mod:`skidsim.solver.contact`): bottom-face nodes against the rigid heightfield, penalty on the
+  vertical penetration ``d = z_surface(x, y) - z_node`` with potential ``k d^2 / 2`` (exactly conservative);
+  the force is ``k d (-dz/dx, -dz/dy, 1)``, i.e. along the surface normal.
+* **Friction**: ``mu(s)`` of the node's own slip speed ``s`` (magnitude of its tangential velocity; the pavement
+  is at rest), Coulomb bound ``mu(s) N``, regularised near ``s = 0`` by the *stick limit*: the friction force never
+  exceeds the force that stops the node's predicted tangential velocity within the step (``m |v_t,trial| / dt``).
+  No viscous regularisation, so no extra stiffness and no time-step penalty; sticking is exact.
+* **Loading**: the top face is bonded to a rigid holder: its x/y velocities are prescribed (0 during the preload,
+  the test speed in x while sliding) and all top nodes share one vertical velocity (a single vertical degree of
+  freedom carrying the dead load ``load_n``; the holder's mass is that of the top-face nodes). The holder takes the
+  friction moment (no pitch or roll of the top face), as a slider glued to the DFT's rigid slider plate. Gravity
+  is neglected (0.03 N against 11.8 N).
+* **Phases**: quasi-static preload by dynamic relaxation (smooth load ramp over ``preload_ramp_s``, then hold,
+  with mass-proportional damping of the absolute velocity), ended as soon as the total contact force is within
+  ``preload_tolerance`` of the load at two checks ``preload_check_s`` apart (at most ``preload_time_s``), then
+  every node receives the test speed in x and the holder slides
+  ``slide_length_mm``.
+* **Output**: SN = mean tangential / mean normal pavement force over the steady window; energy balance of the
+  sliding phase; trace (parquet), optional VTU series.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from skidsim.errors import ConfigError
+from skidsim.friction import kmh_to_ms
+from skidsim.slidermesh import SliderMesh
+from skidsim.solver.config import SolverConfig
+from skidsim.solver.kernel import StructuredKernel, to_internal, to_mesh_layout
+from skidsim.solver.material import RubberMaterial, element_matrices, lumped_mass
+from skidsim.solver.results import SimulationResult, VtuSeriesWriter, write_trace_parquet
+from skidsim.solver.surfaces import pavement_extent_m
+
+log = logging.getLogger("skidsim.solver")
+
+
+def material_from_config(config: SolverConfig) -> RubberMaterial:
+    """The :class:`RubberMaterial` of a :class:`SolverConfig`."""
+    return RubberMaterial(config.youngs_modulus_pa, config.poisson, config.density_kg_m3,
+                          config.prony_g, config.prony_tau_s)
+
+
+def build_kernel(mesh: SliderMesh, material: RubberMaterial) -> StructuredKernel:
+    """Slicing kernel with the long-term elastic matrix and the Prony branches of ``material``."""
+    k_vol, k_dev = element_matrices(mesh.hx, mesh.hy, mesh.hz)
+    k_inf = material.bulk_modulus_pa * k_vol + material.shear_modulus_pa * k_dev
+    return StructuredKernel(mesh, k_inf, k_dev_unit=k_dev, branch_g_pa=material.branch_shear_moduli_pa,
+                            branch_tau_s=material.prony_tau_s)
+
+
+def max_frequency_power_iteration(mesh: SliderMesh, material: RubberMaterial, mass_kg: np.ndarray, *,
+                                  iterations: int = 150, tol: float = 1e-5, seed: int = 0) -> float:
+    """Highest circular frequency (rad/s) of the free slider, ``sqrt(lambda_max(M^-1/2 K_0 M^-1/2))``.
+
+    Power iteration with the instantaneous stiffness K_0 and lumped masses ``mass_kg`` (internal layout
+    ``(nz+1, ny+1, nx+1)``); the Rayleigh quotient converges from below, which ``dt_safety`` covers. Seeded
+    with ``numpy.random.default_rng(seed)``.
+    """
+    k_vol, k_dev = element_matrices(mesh.hx, mesh.hy, mesh.hz)
+    k0 = material.bulk_modulus_pa * k_vol + material.instantaneous_shear_modulus_pa * k_dev
+    kern = StructuredKernel(mesh, k0)
+    s = 1.0 / np.sqrt(mass_kg)[None]
+    z = np.random.default_rng(seed).standard_normal((3,) + mass_kg.shape)
+    z /= np.linalg.norm(z)
+    out = np.empty_like(z)
+    lam_old = 0.0
+    lam = 0.0
+    for it in range(iterations):
+        kern.force(z * s, out)
+        out *= s
+        lam = float(np.vdot(z, out))
+        nrm = np.linalg.norm(out)
+        z = out / nrm
+        if it > 20 and abs(lam - lam_old) < tol * lam:
+            break
+        lam_old = lam
+    return math.sqrt(max(lam, 0.0))
+
+
+def _max_slope_sq(pavement, x0, x1, y0, y1, spacing_m) -> float:
+    """max |grad z|^2 of the pavement sampled on a grid over the swept region (m)."""
+    nx = max(2, int(math.ceil((x1 - x0) / spacing_m)) + 1)
+    ny = max(2, int(math.ceil((y1 - y0) / spacing_m)) + 1)
+    x = np.linspace(x0, x1, nx)
+    y = np.linspace(y0, y1, ny)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    _, fx, fy = pavement.evaluate(X.ravel(), Y.ravel())
+    return float(np.nanmax(np.asarray(fx) ** 2 + np.asarray(fy) ** 2))
+
+
+def _ramp(t, t_ramp):
+    return 1.0 if t >= t_ramp else 0.5 * (1.0 - math.cos(math.pi * t / t_ramp))
+
+
+def simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = None, *, y_offset_mm: float = 0.0,
+             progress=None, trace_path: str | Path | None = None, vtu_dir: str | Path | None = None,
+             slope_bound: float | None = None) -> SimulationResult:
+    """Simulate one DFT slide of the rubber slider (see :func:`_simulate` for the parameters)."""
+    config = SolverConfig.reference() if config is None else config
+    limiter = None
+    if config.blas_threads is not None:
+        try:
+            from threadpoolctl import threadpool_limits
+            limiter = threadpool_limits(limits=int(config.blas_threads), user_api="blas")
+        except ImportError:  # pragma: no cover - optional
+            limiter = None
+    try:
+        return _simulate(pavement, speed_kmh, law, config, y_offset_mm=y_offset_mm, progress=progress,
+                         trace_path=trace_path, vtu_dir=vtu_dir, slope_bound=slope_bound)
+    finally:
+        if limiter is not None:
+            limiter.restore_original_limits()
+
+
+def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = None, *, y_offset_mm: float = 0.0,
+              progress=None, trace_path: str | Path | None = None, vtu_dir: str | Path | None = None,
+              slope_bound: float | None = None) -> SimulationResult:
+    """Simulate one DFT slide of the rubber slider over ``pavement`` at ``speed_kmh`` (km/h).
+
+    Parameters
+    ----------
+    pavement: object with ``evaluate(x_m, y_m) -> (z_m, dzdx, dzdy)`` and ``extent_m`` (see
+        :mod:`skidsim.solver.surfaces`). The slider starts ``edge_margin_mm`` after ``x_min`` and slides in +x.
+    speed_kmh: sliding speed in km/h (> 0).
+    law: friction law with ``mu(slip_speed_ms)`` (e.g. :class:`skidsim.friction.ExponentialDecay`).
+    config: :class:`SolverConfig` (default: the reference preset).
+    y_offset_mm: lateral offset (mm) of the slider centre from the centre line of the strip.
+    progress: optional callable ``progress(step, n_steps, elapsed_s, eta_s)``, called about every
+        ``config.progress_every_s`` wall seconds (progress is also logged on logger ``skidsim.solver``).
+    trace_path: if given, the trace is written there as parquet (atomically).
+    vtu_dir: if given, ``config.vtu_frames`` VTU frames of the slide (+ ``slider.pvd``) are written there.
+    slope_bound: optional bound on ``|grad z|^2`` of the pavement for the time step (default: sampled).
+    """
+    t_wall0 = time.perf_counter()
+    config = SolverConfig.reference() if config is None else config
+    if not (np.isfinite(speed_kmh) and speed_kmh > 0):
+        raise ConfigError(f"simulate: 'speed_kmh' expected > 0 km/h, got {speed_kmh!r}")
+    v_slide = float(kmh_to_ms(speed_kmh))
+    mat = material_from_config(config)
+    ext = pavement_extent_m(pavement)
+
+    # ---- geometry and placement -------------------------------------------------------------------------------
+    L, W, T = (config.slider_length_mm * 1e-3, config.slider_width_mm * 1e-3, config.slider_thickness_mm * 1e-3)
+    margin = config.edge_margin_mm * 1e-3
+    x0 = ext[0] + margin
+    y_c = 0.5 * (ext[2] + ext[3]) + y_offset_mm * 1e-3
+    y0 = y_c - 0.5 * W
+    if y0 < ext[2] - 1e-12 or y0 + W > ext[3] + 1e-12:
+        raise ConfigError(f"simulate: 'y_offset_mm' = {y_offset_mm} puts the {config.slider_width_mm} mm wide slider "
+                          f"outside the pavement strip y in [{ext[2] * 1e3:.3f}, {ext[3] * 1e3:.3f}] mm")
+    available = ext[1] - margin - (x0 + L)
+    slide = config.slide_length_mm * 1e-3
+    clamped = False
+    if slide > available + 1e-12:
+        if not config.clamp_slide or available <= config.window_start_mm * 1e-3:
+            raise ConfigError(f"simulate: 'slide_length_mm' = {config.slide_length_mm} does not fit the pavement "
+                              f"strip (x extent {(ext[1] - ext[0]) * 1e3:.2f} mm leaves {available * 1e3:.2f} mm for a "
+                              f"{config.slider_length_mm} mm slider with {config.edge_margin_mm} mm margins)")
+        slide, clamped = available, True
+
+    mesh = SliderMesh.box(config.slider_length_mm, config.slider_width_mm, config.slider_thickness_mm,
+                          config.element_mm, origin_m=(x0, y0, 0.0))
+    nx, ny, nz = mesh.nx, mesh.ny, mesh.nz
+    X = to_internal(mesh.coordinates)                    # (3, nz+1, ny+1, nx+1)
+    zs0, _, _ = pavement.evaluate(X[0, 0].ravel(), X[1, 0].ravel())
+    zs0 = np.asarray(zs0, dtype=float)
+    if not np.all(np.isfinite(zs0)):
+        raise ConfigError("simulate: the pavement returned non-finite heights under the slider's start position")
+    X[2] += zs0.max()                                     # bottom face touches the highest point under its nodes
+
+    # ---- masses, stiffness, loads ---------------------------------------------------------------------------------
+    mass = to_internal(lumped_mass(mesh, mat.density_kg_m3 * config.mass_scaling))
+    minv = 1.0 / mass
+    kern = build_kernel(mesh, mat)
+    area_b = mesh.nodal_tributary_area_bottom().T.copy()  # (ny+1, nx+1) m^2
+    k_pen = config.penalty_scale * mat.youngs_modulus_pa * area_b / mesh.hz  # N/m per bottom node
+    f_top = -config.load_n * area_b / area_b.sum()        # N per top node (same tributary pattern)
+    m_b = mass[0]
+    m_holder = float(mass[-1].sum())                     # the top face moves as one rigid holder in z
+    vz_holder = 0.0
+    c_holder = config.holder_damping_per_s * float(mass.sum())  # N s/m
+    omega_el = max_frequency_power_iteration(mesh, mat, mass)
+    if slope_bound is None:
+        slope_bound = _max_slope_sq(pavement, x0, min(ext[1], x0 + L + slide), y0, y0 + W,
+                                    spacing_m=min(mesh.hx, mesh.hy) / 4)
+    omega_pen_sq = float(np.max(k_pen * (1.0 + slope_bound) / m_b))
+    omega = math.sqrt(omega_el ** 2 + omega_pen_sq)
+    dt = config.dt_safety * 2.0 / omega
+
+    n_pre_max = max(1, int(math.ceil(config.preload_time_s / dt)))
+    n_ramp = min(n_pre_max, max(1, int(math.ceil(config.preload_ramp_s / dt))))
+    n_check = max(1, int(math.ceil(config.preload_check_s / dt)))
+    n_slide = max(1, int(math.ceil(slide / (v_slide * dt))))
+    n_pre = n_pre_max                                     # lowered when the preload has converged
+    n_total = n_pre + n_slide
+    t_ramp = n_ramp * dt
+    fz_prev_check = None
+
+    # ---- state ---------------------------------------------------------------------------------------------------
+    u = np.zeros_like(X)
+    v = np.zeros_like(X)
+    f = np.zeros_like(X)
+    fint = np.zeros_like(X)
+    tmp = np.zeros_like(X)
+    fdamp = np.zeros_like(X)
+    dt_minv = dt * minv[None]
+    ub, vb, fb = u[:, 0], v[:, 0], f[:, 0]                # bottom face views (3, ny+1, nx+1)
+    Xb = X[:, 0]
+    inv_mb_dt = dt / m_b
+    mb_over_dt = m_b / dt
+
+    every = int(config.trace_every)
+    n_rec = (n_slide + every - 1) // every
+    rec_t = np.empty(n_rec)
+    rec_x = np.empty(n_rec)
+    rec_ft = np.empty(n_rec)
+    rec_fn = np.empty(n_rec)
+    rec_a = np.empty(n_rec)
+
+    e = dict(external=0.0, friction=0.0, damping=0.0, viscous=0.0)
+    state0 = {}
+    vtu = VtuSeriesWriter(vtu_dir, mesh) if vtu_dir is not None else None
+    vtu_steps = set()
+    if vtu is not None:
+        vtu_steps = set(np.unique(np.linspace(0, n_slide - 1, int(config.vtu_frames)).round().astype(int)).tolist())
+    max_pen = 0.0
+    preload_force = preload_area = 0.0
+    last_log = t_wall0
+    fric = np.zeros((3,) + area_b.shape)
+    fcn = np.zeros((3,) + area_b.shape)
+    log.info("simulate: %d elements, dt %.3g us, <= %d preload + %d slide steps at %.1f km/h over %.1f mm",
+             mesh.n_elements, dt * 1e6, n_pre, n_slide, speed_kmh, slide * 1e3)
+
+    rec = 0
+    step = -1
+    while step + 1 < n_total:
+        step += 1
+        sliding = step >= n_pre
+        if step == n_pre:  # ---- start of sliding: every node gets the test speed
+            preload_force, preload_area = fz_sum, area_now
+            log.info("preload: contact force %.4f N (load %.4f N) after %d steps (%.3g ms)", preload_force,
+                     config.load_n, n_pre, n_pre * dt * 1e3)
+            v[0] += v_slide
+            kern.force(u, fint)
+            state0 = dict(kinetic=0.5 * float(np.vdot(mass, (v * v).sum(axis=0))),
+                          strain=kern.strain_energy(), contact=pen_energy)
+        # ---- internal force (and Prony history) at u(n)
+        kern.force(u, fint)
+        if kern.g.size:
+            diss = kern.relax(dt)
+            if sliding:
+                e["viscous"] += diss
+        np.negative(fint, out=f)
+        lf = 1.0 if sliding else _ramp(step * dt, t_ramp)
+        f[2, -1] += lf * f_top
+        # ---- damping (mass proportional, velocity relative to the holder)
+        c = config.slide_damping_per_s if sliding else config.preload_damping_per_s
+        vx_frame = v_slide if sliding else 0.0
+        # sliding: dashpots to the holder (moving with (v_slide, 0, vz_holder)), so the rigid vertical motion that
+        # follows the texture is not resisted; preload: to the ground (dynamic relaxation of the whole slider)
+        vz_frame = vz_holder if sliding else 0.0
+        if c > 0:
+            np.multiply(v, mass[None], out=fdamp)
+            if vx_frame:
+                fdamp[0] -= vx_frame * mass
+            if vz_frame:
+                fdamp[2] -= vz_frame * mass
+            fdamp *= -c
+            f += fdamp
+        # ---- contact normal (penalty, conservative)
+        xb = Xb[0] + ub[0]
+        yb = Xb[1] + ub[1]
+        zb = Xb[2] + ub[2]
+        zs, gx, gy = pavement.evaluate(xb, yb)
+        d = zs - zb
+        act = d > 0.0
+        d = np.where(act, d, 0.0)
+        kd = k_pen * d
+        fcn[0] = -kd * gx
+        fcn[1] = -kd * gy
+        fcn[2] = kd
+        fb += fcn
+        pen_energy = 0.5 * float(np.vdot(k_pen, d * d))
+        # ---- friction with the stick limit
+        n_len = np.sqrt(1.0 + gx * gx + gy * gy)
+        N = kd * n_len
+        vt = vb + fb * inv_mb_dt                          # trial velocity without friction
+        nxh, nyh, nzh = -gx / n_len, -gy / n_len, 1.0 / n_len
+        vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
+        vt[0] -= vn * nxh
+        vt[1] -= vn * nyh
+        vt[2] -= vn * nzh
+        s = np.sqrt((vt * vt).sum(axis=0))
+        mu = law.mu(s)
+        fmag = np.minimum(mu * N, mb_over_dt * s)
+        scale = np.where(s > 0.0, -fmag / np.where(s > 0.0, s, 1.0), 0.0)
+        np.multiply(vt, scale, out=fric)
+        fb += fric
+        # ---- rigid holder: top x/y velocity prescribed (reaction = -(net force) there), one common z velocity
+        react_x = -float(f[0, -1].sum())
+        fz_holder = float(f[2, -1].sum())
+        vz_old = vz_holder
+        fz_hd = -c_holder * vz_holder if sliding else 0.0   # holder suspension dashpot (to the ground)
+        vz_holder = vz_holder + dt * (fz_holder + fz_hd) / m_holder
+        # ---- update
+        if sliding:
+            vb_old = vb.copy()
+            if c > 0:
+                fd_dot_v_old = float(np.vdot(fdamp, v))  # avoids copying v: f_d.(v_old + v_new) in two dots
+        np.multiply(f, dt_minv, out=tmp)
+        v += tmp
+        v[0, -1] = vx_frame
+        v[1, -1] = 0.0
+        v[2, -1] = vz_holder
+        if sliding:
+            h = 0.5 * dt
+            e["external"] += h * (-config.load_n * (vz_old + vz_holder) + react_x * 2.0 * vx_frame)
+            e["damping"] -= h * fz_hd * (vz_old + vz_holder)
+            e["friction"] -= h * float(np.vdot(fric, vb_old + vb))
+            if c > 0:
+                # dashpots between each node and the frame (vx_frame, 0, vz_frame): they dissipate
+                # c m |w|^2 (w = velocity relative to the frame, >= 0), the holder feeds them f_d . v_frame
+                fd_frame = 2.0 * (vx_frame * float(fdamp[0].sum()) + vz_frame * float(fdamp[2].sum()))
+                e["damping"] -= h * (fd_dot_v_old + float(np.vdot(fdamp, v)) - fd_frame)
+                e["external"] += h * fd_frame
+        np.multiply(v, dt, out=tmp)
+        u += tmp
+        # ---- pavement force on the slider (at step n)
+        fz_sum = float(fcn[2].sum() + fric[2].sum())
+        area_now = float(area_b[act].sum())
+        if not sliding and step >= n_ramp and (step - n_ramp) % n_check == 0:
+            # preload converged: contact force within tolerance of the load at two checks in a row
+            ok = abs(fz_sum - config.load_n) <= config.preload_tolerance * config.load_n
+            if ok and fz_prev_check is not None and step + 1 < n_pre:
+                n_pre = step + 1
+                n_total = n_pre + n_slide
+            fz_prev_check = fz_sum if ok else None
+        if sliding:
+            if d.max() > max_pen:
+                max_pen = float(d.max())
+            i = step - n_pre
+            if i % every == 0:
+                rec_t[rec] = i * dt
+                rec_x[rec] = v_slide * i * dt
+                rec_ft[rec] = -float(fcn[0].sum() + fric[0].sum())
+                rec_fn[rec] = fz_sum
+                rec_a[rec] = area_now
+                rec += 1
+            if vtu is not None and i in vtu_steps:
+                p = np.zeros(mass.shape)
+                p[0] = N / area_b
+                vtu.write(i * dt, mesh.coordinates, to_mesh_layout(u), to_mesh_layout(p))
+        now = time.perf_counter()
+        if now - last_log >= config.progress_every_s:
+            last_log = now
+            el = now - t_wall0
+            eta = el / (step + 1) * (n_total - step - 1)
+            log.info("step %d/%d (%.0f %%), %.1f s elapsed, %.1f s left", step + 1, n_total,
+                     100.0 * (step + 1) / n_total, el, eta)
+            if progress is not None:
+                progress(step + 1, n_total, el, eta)
+
+    # ---- energies of the sliding phase
+    kern.force(u, fint)
+    kinetic = 0.5 * float(np.vdot(mass, (v * v).sum(axis=0)))
+    energies = dict(external=e["external"], kinetic=kinetic - state0["kinetic"],
+                    strain=kern.strain_energy() - state0["strain"], contact=pen_energy - state0["contact"],
+                    friction=e["friction"], hourglass=0.0, damping=e["damping"], viscous=e["viscous"])
+    energies["residual"] = energies["external"] - sum(energies[k] for k in ("kinetic", "strain", "contact", "friction",
+                                                                             "hourglass", "damping", "viscous"))
+    trace = pd.DataFrame({"time_s": rec_t[:rec], "position_mm": rec_x[:rec] * 1e3, "tangential_n": rec_ft[:rec],
+                          "normal_n": rec_fn[:rec], "contact_area_mm2": rec_a[:rec] * 1e6})
+    w0 = config.window_start_mm
+    w1 = slide * 1e3 if config.window_end_mm is None else min(config.window_end_mm, slide * 1e3)
+    win = (trace["position_mm"] >= w0) & (trace["position_mm"] <= w1)
+    if not win.any():
+        raise ConfigError(f"simulate: the steady window [{w0}, {w1}] mm holds no trace rows "
+                          f"(slide {slide * 1e3:.2f} mm)")
+    ft = float(trace.loc[win, "tangential_n"].mean())
+    fn = float(trace.loc[win, "normal_n"].mean())
+    if trace_path is not None:
+        write_trace_parquet(trace, trace_path)
+    wall = time.perf_counter() - t_wall0
+    log.info("simulate: SN %.4f (Ft %.4f N / Fn %.4f N), %d steps in %.1f s", ft / fn, ft, fn, n_total, wall)
+    return SimulationResult(
+        sn=ft / fn, tangential_n=ft, normal_n=fn, n_steps=n_total, dt_s=dt, wall_s=wall, energies=energies,
+        trace=trace, speed_kmh=float(speed_kmh), slide_length_mm=slide * 1e3, slide_clamped=clamped,
+        window_mm=(float(w0), float(w1)), preload_steps=n_pre, preload_contact_force_n=preload_force,
+        preload_contact_area_mm2=preload_area * 1e6, max_penetration_um=max_pen * 1e6, n_elements=mesh.n_elements,
+        omega_max_rad_s=omega, mean_contact_area_mm2=float(trace.loc[win, "contact_area_mm2"].mean()),
+        meta=dict(config=config.as_dict(), y_offset_mm=float(y_offset_mm), omega_elastic_rad_s=omega_el,
+                  slope_bound=float(slope_bound), element_size_m=(mesh.hx, mesh.hy, mesh.hz)))

@@ -1,0 +1,149 @@
+"""Analytic rigid pavement surfaces implementing the solver's pavement protocol.
+
+The solver accepts any object with
+
+* ``evaluate(x_m, y_m) -> (z_m, dzdx, dzdy)``: vectorised height (m) and slopes (dimensionless) of the rigid
+  surface at plan positions in m (C1: heights and slopes continuous), and
+* ``extent_m`` (or ``extent``, as :class:`skidsim.reconstruct.Heightfield` names it): ``(x_min, x_max, y_min,
+  y_max)`` in m, the region where ``evaluate`` is valid.
+
+:class:`skidsim.reconstruct.Heightfield` implements it for scanned pavements; the classes here are exact analytic
+surfaces for verification runs (flat, tilted and sinusoidal), usable in the workflow as well.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Default extent (m) of the analytic surfaces: a 200 mm x 60 mm strip centred on y = 0 starting at x = 0.
+DEFAULT_EXTENT_M = (0.0, 0.2, -0.03, 0.03)
+
+
+@dataclass(frozen=True)
+class FlatPlane:
+    """The plane ``z = z0_m`` (m)."""
+
+    z0_m: float = 0.0
+    extent_m: tuple[float, float, float, float] = DEFAULT_EXTENT_M
+
+    def evaluate(self, x_m, y_m):
+        x = np.asarray(x_m, dtype=float)
+        shape = np.broadcast(x, np.asarray(y_m)).shape
+        return np.full(shape, self.z0_m), np.zeros(shape), np.zeros(shape)
+
+
+@dataclass(frozen=True)
+class TiltedPlane:
+    """The plane ``z = z0_m + slope_x * x + slope_y * y`` (m; slopes dimensionless)."""
+
+    slope_x: float = 0.0
+    slope_y: float = 0.0
+    z0_m: float = 0.0
+    extent_m: tuple[float, float, float, float] = DEFAULT_EXTENT_M
+
+    def evaluate(self, x_m, y_m):
+        x = np.asarray(x_m, dtype=float)
+        y = np.asarray(y_m, dtype=float)
+        shape = np.broadcast(x, y).shape
+        z = self.z0_m + self.slope_x * x + self.slope_y * y
+        return np.broadcast_to(z, shape).copy(), np.full(shape, self.slope_x), np.full(shape, self.slope_y)
+
+
+@dataclass(frozen=True)
+class SinusoidalSurface:
+    """Egg-box texture ``z = a cos(2 pi x / lx + phase) cos(2 pi y / ly)`` (a, lx, ly in m).
+
+    ``wavelength_y_m = inf`` gives ridges across the sliding direction (a 2-d corrugation).
+    """
+
+    amplitude_m: float = 0.2e-3
+    wavelength_x_m: float = 4e-3
+    wavelength_y_m: float = 4e-3
+    phase: float = 0.0
+    extent_m: tuple[float, float, float, float] = DEFAULT_EXTENT_M
+
+    def evaluate(self, x_m, y_m):
+        x = np.asarray(x_m, dtype=float)
+        y = np.asarray(y_m, dtype=float)
+        kx = 2 * np.pi / self.wavelength_x_m
+        ky = 0.0 if np.isinf(self.wavelength_y_m) else 2 * np.pi / self.wavelength_y_m
+        cx, sx = np.cos(kx * x + self.phase), np.sin(kx * x + self.phase)
+        cy, sy = np.cos(ky * y), np.sin(ky * y)
+        a = self.amplitude_m
+        return a * cx * cy, -a * kx * sx * cy, -a * ky * cx * sy
+
+
+def pavement_extent_m(pavement) -> tuple[float, float, float, float]:
+    """``(x_min, x_max, y_min, y_max)`` in m of a pavement object (attribute ``extent_m``)."""
+    ext = getattr(pavement, "extent_m", None)
+    if ext is None:
+        ext = getattr(pavement, "extent", None)  # skidsim.reconstruct.Heightfield: extent in m
+    if ext is None:
+        raise TypeError(f"pavement {type(pavement).__name__} has no 'extent_m' or 'extent' "
+                        "(x_min, x_max, y_min, y_max) in m")
+    ext = tuple(float(e) for e in ext)
+    if len(ext) != 4 or not (ext[1] > ext[0] and ext[3] > ext[2]):
+        raise ValueError(f"pavement extent_m: expected (x_min, x_max, y_min, y_max) with max > min in m, got {ext}")
+    return ext
+
+
+@dataclass(frozen=True)
+class RandomTexture:
+    """Seeded random isotropic texture: a sum of ``n_modes`` plane cosine waves (C-infinity, exact slopes).
+
+    Wavelengths are log-uniform in ``[min_wavelength_m, max_wavelength_m]`` with amplitudes ~ wavelength^hurst
+    (self-affine-like), random directions and phases from ``numpy.random.default_rng(seed)``; the heights are
+    scaled to the RMS height ``rms_m`` (m, the expected value over the plane). A stand-in for a scanned pavement
+    in benchmarks and tests (macro-texture scale; the 0.05 mm micro-texture is below the slider mesh anyway).
+    """
+
+    rms_m: float = 0.3e-3
+    min_wavelength_m: float = 1.5e-3
+    max_wavelength_m: float = 20e-3
+    n_modes: int = 48
+    hurst: float = 0.8
+    seed: int = 0
+    extent_m: tuple[float, float, float, float] = DEFAULT_EXTENT_M
+
+    def __post_init__(self):
+        object.__setattr__(self, "_cache", self._draw())
+
+    def _modes(self):
+        return self._cache
+
+    def _draw(self):
+        rng = np.random.default_rng(self.seed)
+        lam = np.exp(rng.uniform(np.log(self.min_wavelength_m), np.log(self.max_wavelength_m), self.n_modes))
+        theta = rng.uniform(0, np.pi, self.n_modes)
+        phase = rng.uniform(0, 2 * np.pi, self.n_modes)
+        amp = lam ** self.hurst
+        amp *= self.rms_m / np.sqrt(0.5 * np.sum(amp ** 2))
+        k = 2 * np.pi / lam
+        return amp, k * np.cos(theta), k * np.sin(theta), phase
+
+    def evaluate(self, x_m, y_m):
+        x = np.asarray(x_m, dtype=float)
+        y = np.asarray(y_m, dtype=float)
+        amp, kx, ky, ph = self._modes()
+        arg = np.multiply.outer(x, kx) + np.multiply.outer(y, ky) + ph
+        c, s = np.cos(arg), np.sin(arg)
+        return c @ amp, -(s @ (amp * kx)), -(s @ (amp * ky))
+
+
+def to_heightfield(surface, spacing_m: float = 0.1e-3, name: str = ""):
+    """Sample an analytic surface on a regular grid (spacing in m) over its extent as a
+    :class:`skidsim.reconstruct.Heightfield` (C1 interpolation, the path scanned pavements take; also far cheaper
+    to evaluate than :class:`RandomTexture`'s sum of cosines)."""
+    from skidsim.reconstruct import Heightfield
+
+    x0, x1, y0, y1 = pavement_extent_m(surface)
+    nx = int(round((x1 - x0) / spacing_m)) + 1
+    ny = int(round((y1 - y0) / spacing_m)) + 1
+    x = x0 + spacing_m * np.arange(nx)
+    y = y0 + spacing_m * np.arange(ny)
+    X, Y = np.meshgrid(x, y)
+    z, _, _ = surface.evaluate(X.ravel(), Y.ravel())
+    return Heightfield(np.asarray(z).reshape(X.shape), spacing_m, spacing_m, origin_m=(x0, y0),
+                       name=name or type(surface).__name__)

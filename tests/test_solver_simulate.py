@@ -1,0 +1,127 @@
+"""Whole-simulation verification: flat-plane SN = mu, exponential law, preload, energy balance, time-step
+convergence, outputs and input errors."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skidsim.errors import ConfigError
+from skidsim.friction import ConstantFriction, ExponentialDecay
+from skidsim.solver import FlatPlane, SinusoidalSurface, SolverConfig, TiltedPlane, simulate
+
+FAST = SolverConfig(element_mm=2.0, slide_length_mm=10.0, window_start_mm=4.0)
+TEX = SinusoidalSurface(amplitude_m=0.1e-3, wavelength_x_m=4e-3, wavelength_y_m=5e-3)
+TEX_CFG = SolverConfig(element_mm=1.0, slide_length_mm=8.0, window_start_mm=2.0)
+
+
+@pytest.mark.parametrize("speed_kmh", [20, 40, 60, 80])
+def test_flat_plane_constant_mu(speed_kmh):
+    r = simulate(FlatPlane(), speed_kmh, ConstantFriction(0.45), FAST)
+    assert r.sn == pytest.approx(0.45, rel=0.005)
+    assert r.normal_n == pytest.approx(FAST.load_n, rel=0.02)  # short window: start-up transient in the mean
+
+
+def test_flat_plane_exponential_law_every_speed():
+    law = ExponentialDecay(mu_s=0.8, mu_k=0.3, alpha=0.15)
+    for v in (10, 30, 50, 70):
+        r = simulate(FlatPlane(z0_m=1e-3), v, law, FAST)
+        assert r.sn == pytest.approx(float(law.mu_kmh(v)), rel=0.01), v
+
+
+def test_static_preload_contact_force_equals_load():
+    for surf in (FlatPlane(), TEX):
+        r = simulate(surf, 20, ConstantFriction(0.4), TEX_CFG.replace(slide_length_mm=2.0, window_start_mm=0.5))
+        assert r.preload_contact_force_n == pytest.approx(TEX_CFG.load_n, rel=0.005)
+    # on the texture the slider rests on the crests: much less than the full face is in contact
+    assert r.preload_contact_area_mm2 < 0.5 * 20 * 16
+
+
+def test_energy_balance_textured_run():
+    r = simulate(TEX, 20, ExponentialDecay(0.6, 0.35, 0.3), TEX_CFG)
+    e = r.energies
+    assert e["external"] > 0 and e["friction"] > 0 and e["damping"] >= 0
+    assert e["hourglass"] == 0.0
+    assert abs(e["residual"]) < 0.01 * e["external"]
+    # friction dissipation ~ SN-independent estimate: mean friction force x distance within a factor
+    assert 0.2 < e["friction"] / (r.normal_n * 0.35 * r.slide_length_mm * 1e-3) < 3
+
+
+def test_energy_balance_viscoelastic_run():
+    cfg = TEX_CFG.replace(prony_g=(0.5,), prony_tau_s=(5e-5,), slide_length_mm=4.0)
+    r = simulate(TEX, 20, ConstantFriction(0.4), cfg)
+    assert r.energies["viscous"] > 0
+    assert abs(r.energies["residual"]) < 0.01 * r.energies["external"]
+
+
+def test_halving_time_step_changes_sn_less_than_one_percent():
+    # a texture the slider can follow at 20 km/h (a k^2 < load / mass): no flight phases, so the response is
+    # not chaotic and the comparison measures the time-discretisation error
+    gentle = SinusoidalSurface(amplitude_m=0.05e-3, wavelength_x_m=5e-3, wavelength_y_m=6e-3)
+    law = ExponentialDecay(0.6, 0.35, 0.3)
+    a = simulate(gentle, 20, law, TEX_CFG)
+    b = simulate(gentle, 20, law, TEX_CFG.replace(dt_safety=TEX_CFG.dt_safety / 2))
+    assert b.dt_s == pytest.approx(a.dt_s / 2, rel=1e-9)
+    assert b.sn == pytest.approx(a.sn, rel=0.01)
+    # the texture is felt: partial contact and a fluctuating normal force (flat: constant to 1e-4)
+    assert a.mean_contact_area_mm2 < 0.8 * 20 * 16
+    assert a.trace["normal_n"].std() > 0.01 * TEX_CFG.load_n
+
+
+def test_tilted_plane_geometry():
+    """On a plane tilted in y (no slope along x) sliding in x, the pavement force is inclined: SN = mu still
+    holds for the x force over the vertical force times the normal's z component."""
+    s = 0.05
+    r = simulate(TiltedPlane(slope_y=s), 20, ConstantFriction(0.4), FAST)
+    # normal force along n = (0, -s, 1)/sqrt(1+s^2): vertical component of N is N/sqrt(1+s^2)
+    assert r.sn == pytest.approx(0.4 * np.sqrt(1 + s * s), rel=0.01)
+
+
+def test_outputs_trace_and_vtu(tmp_path):
+    cfg = FAST.replace(vtu_frames=3)
+    calls = []
+    r = simulate(FlatPlane(), 30, ConstantFriction(0.4), cfg.replace(progress_every_s=1e-9),
+                 trace_path=tmp_path / "t.parquet", vtu_dir=tmp_path / "vtu",
+                 progress=lambda *a: calls.append(a))
+    t = pd.read_parquet(tmp_path / "t.parquet")
+    assert list(t.columns) == ["time_s", "position_mm", "tangential_n", "normal_n", "contact_area_mm2"]
+    assert t["position_mm"].iloc[-1] == pytest.approx(r.slide_length_mm, abs=0.1)
+    assert len(list((tmp_path / "vtu").glob("*.vtu"))) == 3 and (tmp_path / "vtu" / "slider.pvd").exists()
+    assert calls and calls[-1][0] == r.n_steps
+    import meshio
+    m = meshio.read(sorted((tmp_path / "vtu").glob("*.vtu"))[-1])
+    assert m.points.shape[0] == (cfg.slider_length_mm / 2 + 1) * (cfg.slider_width_mm / 2 + 1) * 4
+    assert m.point_data["contact_pressure_pa"].max() > 0
+
+
+def test_slide_clamped_to_strip_and_errors():
+    short = FlatPlane(extent_m=(0.0, 0.05, -0.01, 0.01))
+    r = simulate(short, 20, ConstantFriction(0.4), FAST.replace(slide_length_mm=100.0))
+    assert r.slide_clamped and r.slide_length_mm == pytest.approx(50 - 20 - 2 * FAST.edge_margin_mm)
+    with pytest.raises(ConfigError, match="slide_length_mm"):
+        simulate(short, 20, ConstantFriction(0.4), FAST.replace(slide_length_mm=100.0, clamp_slide=False))
+    with pytest.raises(ConfigError, match="y_offset_mm"):
+        simulate(short, 20, ConstantFriction(0.4), FAST, y_offset_mm=5.0)
+    with pytest.raises(ConfigError, match="speed_kmh"):
+        simulate(short, 0.0, ConstantFriction(0.4), FAST)
+    with pytest.raises(ConfigError, match="mass_scaling"):
+        SolverConfig(mass_scaling=0.5)
+    with pytest.raises(ConfigError, match="unknown"):
+        SolverConfig.from_dict({"element_size": 1.0})
+    assert SolverConfig.from_dict({"prony_g": [0.2], "prony_tau_s": [1e-4]}).prony_g == (0.2,)
+
+
+def test_mesh_study_script_and_plots(tmp_path):
+    import runpy
+
+    from skidsim.plotting.solver import plot_trace
+
+    mod = runpy.run_path("benchmarks/mesh_study.py", run_name="mesh_study")
+    rc = mod["main"]([str(tmp_path / "m.csv"), str(tmp_path / "m.png"), "--sizes", "2", "1.5", "--speeds", "60",
+                      "--slide-mm", "8", "--window-mm", "3", "--pavement", "sinusoid"])
+    assert rc == 0
+    t = pd.read_csv(tmp_path / "m.csv")
+    assert len(t) == 2 and t.loc[t["element_mm"] == 1.5, "error_pct"].item() == 0.0
+    assert (tmp_path / "m.png").stat().st_size > 1000
+    r = simulate(FlatPlane(), 40, ConstantFriction(0.4), FAST)
+    plot_trace(r.trace, tmp_path / "t.png", window_mm=r.window_mm)
+    assert (tmp_path / "t.png").exists()
