@@ -108,8 +108,8 @@ def regression_split(cfg: dict, sites: pd.DataFrame) -> tuple[list[str], list[st
     return [str(s) for s in train], [str(s) for s in test]
 
 
-#: The quick preset (config/quick.yaml): the campaign preset on a 2 mm slider mesh with a 12 mm slide.
-QUICK_SOLVER = {"element_mm": 2.0, "slide_length_mm": 12.0, "window_start_mm": 3.0}
+#: The quick preset (config/quick.yaml): the campaign preset on a 2 mm slider mesh with a 40 mm slide.
+QUICK_SOLVER = {"element_mm": 2.0, "slide_length_mm": 40.0, "window_start_mm": 5.0}
 
 
 def solver_config(cfg: dict):

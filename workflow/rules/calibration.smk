@@ -16,7 +16,7 @@ rule calibrate:
         calibration=config["calibration"],
         solver=config["solver"],
         speeds=config["speeds"]["calibration_kmh"],
-        cache=f"{RESULTS}/cache/{{site}}/fe_{{method}}.parquet",
+        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     log:
         "logs/calibrate/{site}_{method}.log",
     benchmark:
@@ -42,7 +42,7 @@ rule validate_speeds:
         methods=METHODS,
         calibration_speeds=config["speeds"]["calibration_kmh"],
         validation_speeds=config["speeds"]["validation_kmh"],
-        cache=f"{RESULTS}/cache/{{site}}/fe_validation.parquet",
+        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     log:
         "logs/validate_speeds/{site}.log",
     benchmark:

@@ -50,7 +50,7 @@ rule predict_fe:
     params:
         solver=config["solver"],
         speeds=config["regression"]["prediction_speeds_kmh"],
-        cache=f"{RESULTS}/cache/{{site}}/fe_prediction.parquet",
+        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     log:
         "logs/predict_fe/{site}.log",
     benchmark:

@@ -28,7 +28,7 @@ else:
     traces = pd.read_parquet(snakemake.input.traces)
     trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
     result = calibration.calibrate_fast(simulate, trace, speeds_kmh=speeds, tol=c["tol"],
-                                        max_fe_runs=c["max_fe_runs"], fit_range_kmh=tuple(c["fit_range_kmh"]) if c.get("fit_range_kmh") else None,
+                                        max_fe_runs=c["max_fe_runs"], model=c["model"], fit_range_kmh=tuple(c["fit_range_kmh"]) if c.get("fit_range_kmh") else None,
                                         source=snakemake.input.traces)
 log.info("%s %s: %s; %d FE runs, %d steps, converged=%s %s", site, method, result.params, result.n_fe_runs,
          result.n_steps, result.converged, result.message)
