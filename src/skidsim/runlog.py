@@ -16,12 +16,14 @@ LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 
 
 def setup_logging(log_path: str | Path | None = None, level: int = logging.INFO) -> logging.Logger:
-    """Send log records to ``log_path`` (and stderr); returns the ``skidsim`` logger."""
+    """Send log records to ``log_path`` (and warnings to stderr; everything when there is no file)."""
     root = logging.getLogger()
     for h in list(root.handlers):
         root.removeHandler(h)
-    handlers: list[logging.Handler] = [logging.StreamHandler(sys.stderr)]
-    if log_path:
+    console = logging.StreamHandler(sys.stderr)
+    handlers: list[logging.Handler] = [console]
+    if log_path:  # with a log file, the console (Snakemake's output) only gets warnings and errors
+        console.setLevel(logging.WARNING)
         Path(log_path).parent.mkdir(parents=True, exist_ok=True)
         handlers.append(logging.FileHandler(log_path, mode="w"))
     for h in handlers:

@@ -10,7 +10,7 @@ rule despeckle:
         surfaces=temp(f"{RESULTS}/sites/{{site}}/despeckled.npz"),
         stats=f"{RESULTS}/sites/{{site}}/despeckle.json",
     params:
-        cfg=config["texture"]["despeckle"],
+        cfg=config["texture"],
     log:
         "logs/despeckle/{site}.log",
     threads: 1
@@ -28,7 +28,7 @@ rule separate_bands:
     output:
         bands=temp(f"{RESULTS}/sites/{{site}}/bands.npz"),
     params:
-        cfg=config["texture"]["bands"],
+        cfg=config["texture"],
     log:
         "logs/separate_bands/{site}.log",
     threads: 1
@@ -46,7 +46,7 @@ rule mpd:
     output:
         mpd=f"{RESULTS}/sites/{{site}}/mpd.json",
     params:
-        cfg=config["texture"]["mpd"],
+        cfg=config["texture"],
     log:
         "logs/mpd/{site}.log",
     threads: 1
@@ -65,7 +65,7 @@ rule texture_parameters:
     output:
         table=f"{RESULTS}/sites/{{site}}/texture.parquet",
     params:
-        cfg=config["texture"]["parameters"],
+        cfg=config["texture"],
     log:
         "logs/texture_parameters/{site}.log",
     benchmark:

@@ -1,11 +1,12 @@
 """Snakemake adapter: form removal and Butterworth separation into raw, macro and micro texture."""
 from skidsim import texture
 from skidsim.runlog import setup_logging
+from skidsim.texture import TextureOptions
 from skidsim.workflow_support import load_surfaces, save_surfaces
 
 log = setup_logging(snakemake.log[0])
-cfg = snakemake.params.cfg
+o = TextureOptions(**snakemake.params.cfg)
 clean = load_surfaces(snakemake.input.surfaces)["clean"]
-bands = texture.separate_bands(clean, macro=tuple(cfg["macro_mm"]), order=cfg["order"], form=cfg["form"])
+bands = texture.separate_bands(clean, macro=tuple(o.macro_mm), order=o.butterworth_order, form=o.form, fill=o.fill)
 save_surfaces(snakemake.output.bands, bands)
 log.info("bands written: %s", ", ".join(bands))
