@@ -20,8 +20,8 @@ synthetic:
   seed: 5
   sections: [E1, E6, C2]
   sites_per_section: 1
-  shape: [256, 320]
-  spacing_mm: 0.4
+  shape: [512, 640]
+  spacing_mm: 0.2
 solver:
   preset: quick
   load_n: 11.8

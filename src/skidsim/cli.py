@@ -31,7 +31,7 @@ def _cmd_validate(args) -> int:
 
 
 def _texture_options(args) -> dict:
-    return {"despeckle": {"method": args.despeckle}, "bands": {"macro_mm": tuple(args.macro_mm)}}
+    return {"despeckle_method": args.despeckle, "macro_mm": tuple(args.macro_mm)}
 
 
 def _cmd_texture(args) -> int:
@@ -69,7 +69,7 @@ def _cmd_simulate(args) -> int:
     from .workflow_support import solver_config
 
     surface = read_scan(args.scan)
-    clean, _ = texture.despeckle(surface, method="tukey")
+    clean, _ = texture.despeckle(surface, method="mad")
     clean = texture.fill_invalid(clean)
     pav = pavement_strip(clean, resolution_mm=args.resolution_mm)
     cfg = solver_config({"preset": args.preset, "load_n": args.load_n, "overrides": {}})
@@ -126,7 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
     t = sub.add_parser("texture", help="areal texture parameters of one scan (raw, macro, micro) and MPD")
     t.add_argument("scan", help="X3P or grid text scan")
     t.add_argument("-o", "--output", help="write the long table to .parquet or .csv")
-    t.add_argument("--despeckle", choices=["tukey", "study", "mad"], default="tukey")
+    t.add_argument("--despeckle", choices=["mad", "tukey", "study"], default="mad",
+                   help="despeckle fences (default mad; study = the literal limiting filter)")
     t.add_argument("--macro-mm", type=float, nargs=2, default=[0.5, 50.0], metavar=("LOW", "HIGH"),
                    help="macrotexture wavelength band in mm (default 0.5 50)")
     t.add_argument("-q", "--quiet", action="store_true", help="do not print the table")
