@@ -16,6 +16,13 @@ report: "workflow/report/workflow.rst"
 
 
 include: "workflow/rules/common.smk"
+
+wildcard_constraints:
+    site="[A-Za-z0-9][A-Za-z0-9_.-]*",
+    section="[A-Za-z0-9][A-Za-z0-9_.-]*",
+    method="|".join(METHODS),
+
+
 include: "workflow/rules/campaign.smk"
 include: "workflow/rules/texture.smk"
 include: "workflow/rules/mesh.smk"

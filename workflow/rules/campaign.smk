@@ -54,16 +54,6 @@ rule synth_truth:
         "../scripts/synth_truth.py"
 
 
-def campaign_inputs(wildcards):
-    if SYNTHETIC:
-        return {
-            "sites": SITES_CSV,
-            "scans": expand(f"{RESULTS}/campaign/scans/{{site}}.x3p", site=SITES),
-            "dfts": expand(f"{RESULTS}/campaign/dft/{{site}}.csv", site=SITES),
-        }
-    return {"sites": SITES_CSV}
-
-
 rule validate_campaign:
     """Check the whole campaign against the data contract; every error is named at once, nothing else runs."""
     input:

@@ -1,4 +1,5 @@
 # Site table, input functions, config validation and wildcard constraints shared by every rule file.
+import re
 import sys
 from pathlib import Path
 
@@ -29,12 +30,6 @@ SECTION_OF = dict(zip(SITE_TABLE["site"], SITE_TABLE["section"]))
 METHODS = list(config["calibration"]["methods"])
 
 
-wildcard_constraints:
-    site="[A-Za-z0-9][A-Za-z0-9_.-]*",
-    section="[A-Za-z0-9][A-Za-z0-9_.-]*",
-    method="|".join(METHODS),
-
-
 def scan_of(wildcards):
     """The scan file of a site: from the synthetic generator or from the user's sites.csv."""
     if SYNTHETIC:
@@ -47,6 +42,11 @@ def dft_of(wildcards):
     if SYNTHETIC:
         return f"{RESULTS}/campaign/dft/{wildcards.site}.csv"
     return str(CAMPAIGN_DIR / SITE_TABLE.set_index("site").loc[wildcards.site, "dft"])
+
+
+def rule_id(name):
+    """A site or section id for use in a target name (letters, digits and _ kept; any other character becomes _)."""
+    return re.sub(r"\W", "_", name)
 
 
 def sites_of_section(section):
@@ -64,6 +64,16 @@ def site_outputs(site):
         f"{d}/fe_model.png",
         f"{d}/validation.parquet",
     ] + [f"{d}/calibration_{m}.json" for m in METHODS]
+
+
+def campaign_inputs(wildcards):
+    if SYNTHETIC:
+        return {
+            "sites": SITES_CSV,
+            "scans": expand(f"{RESULTS}/campaign/scans/{{site}}.x3p", site=SITES),
+            "dfts": expand(f"{RESULTS}/campaign/dft/{{site}}.csv", site=SITES),
+        }
+    return {"sites": SITES_CSV}
 
 
 INGEST = f"{RESULTS}/ingest/sites.parquet"

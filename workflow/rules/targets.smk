@@ -32,7 +32,7 @@ for _section in SECTIONS:
 
     rule:
         name:
-            "section_" + re.sub(r"\W", "_", _section)
+            f"section_{rule_id(_section)}"
         input:
             [p for s in sites_of_section(_section) for p in site_outputs(s)],
         localrule: True
@@ -42,7 +42,7 @@ for _site in SITES:
 
     rule:
         name:
-            "site_" + re.sub(r"\W", "_", _site)
+            f"site_{rule_id(_site)}"
         input:
             site_outputs(_site),
         localrule: True
