@@ -1,0 +1,72 @@
+"""Texture figures: the study's Figure 7 panels, the despeckle comparison, campaign distributions."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from skidsim.surface import Surface
+
+from .style import COLORS, figure
+
+
+def _image(ax, s: Surface, title: str, max_px: int = 600):
+    h = s.heights
+    step = max(1, int(np.ceil(max(h.shape) / max_px)))  # decimate for the figure only
+    im = ax.imshow(h[::step, ::step], origin="lower", extent=(0, s.width_mm, 0, s.height_mm), aspect="equal")
+    ax.set_title(title)
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.grid(False)
+    ax.figure.colorbar(im, ax=ax, shrink=0.8, label="height (mm)")
+
+
+def plot_figure7(raw: Surface, despeckled: Surface, macro: Surface, micro: Surface, path: str | Path) -> None:
+    """Four range images like the study's Figure 7: scan, despeckled, macrotexture, microtexture (mm)."""
+    with figure(path, nrows=2, ncols=2, figsize=(10.0, 8.0)) as (fig, axes):
+        for ax, s, t in zip(axes.ravel(), (raw, despeckled, macro, micro),
+                            ("range image (as scanned)", "despeckled", "macrotexture 0.5-50 mm",
+                             "microtexture < 0.5 mm")):
+            _image(ax, s, t)
+
+
+def plot_despeckle_comparison(profile_mm: np.ndarray, dx_mm: float, results: dict[str, np.ndarray],
+                              path: str | Path, title: str = "") -> None:
+    """One profile (mm) and its despeckled versions ``{rule: profile}`` on a common x axis (mm)."""
+    x = np.arange(profile_mm.size) * dx_mm
+    colors = ["#d95f02", "#1b9e77", "#7570b3", "#e7298a"]
+    with figure(path, figsize=(9.0, 4.0)) as (fig, ax):
+        ax.plot(x, profile_mm, color=COLORS["measured"], lw=0.8, label="profile")
+        for (name, prof), c in zip(results.items(), colors):
+            ax.plot(x, prof, color=c, lw=0.9, alpha=0.85, label=name)
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("height (mm)")
+        if title:
+            ax.set_title(title)
+        ax.legend(loc="best")
+
+
+def plot_campaign_distributions(campaign_wide: pd.DataFrame, path: str | Path,
+                                parameters: tuple[str, ...] = ("Sq", "Ssk", "Sdr", "Sal", "Sk", "S10z", "Spd",
+                                                               "Vvv"),
+                                bands: tuple[str, ...] = ("macro", "micro")) -> None:
+    """Histograms over sites of selected parameters, one panel per parameter, one colour per band."""
+    params = [p for p in parameters if any(f"{b}_{p}" in campaign_wide.columns for b in bands)]
+    if not params:
+        raise ValueError(f"plot_campaign_distributions: none of {parameters} found for bands {bands}")
+    ncols = min(4, len(params))
+    nrows = int(np.ceil(len(params) / ncols))
+    with figure(path, nrows=nrows, ncols=ncols, figsize=(3.2 * ncols, 2.6 * nrows), squeeze=False) as (fig, axes):
+        for ax, p in zip(axes.ravel(), params):
+            for b in bands:
+                col = f"{b}_{p}"
+                if col in campaign_wide.columns:
+                    v = pd.to_numeric(campaign_wide[col], errors="coerce").dropna()
+                    ax.hist(v, bins=min(12, max(3, v.size)), alpha=0.6, color=COLORS.get(b), label=b)
+            ax.set_title(p)
+            ax.set_ylabel("sites")
+        for ax in axes.ravel()[len(params):]:
+            ax.set_visible(False)
+        axes.ravel()[0].legend()

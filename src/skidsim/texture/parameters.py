@@ -1,0 +1,174 @@
+"""All areal parameters of one band: :func:`areal_parameters` (names and units as the workflow expects)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from skidsim.errors import ConfigError
+from skidsim.surface import Surface
+
+from .despeckle import METHODS
+from .filters import FILL_METHODS, form_degree
+
+from .features import PRUNING_REFERENCES, feature_parameters, motif_parameters, pruning_threshold
+from .furrows import furrow_parameters
+from .height import height_parameters
+from .hybrid import sdq, sdr
+from .material_ratio import material_ratio_parameters
+from .segmentation import segment
+from .spatial import spatial_parameters
+
+#: Parameter name -> unit, in output order.
+UNITS: dict[str, str] = {
+    "Sq": "mm", "Ssk": "1", "Sku": "1", "Sp": "mm", "Sv": "mm", "Sz": "mm", "Sa": "mm",
+    "Sal": "mm", "Str": "1", "Std": "deg",
+    "Sdq": "1", "Sdr": "%",
+    "Vm": "mm^3/mm^2", "Vv": "mm^3/mm^2", "Vmp": "mm^3/mm^2", "Vmc": "mm^3/mm^2", "Vvc": "mm^3/mm^2",
+    "Vvv": "mm^3/mm^2",
+    "Sk": "mm", "Spk": "mm", "Svk": "mm", "Smr1": "%", "Smr2": "%", "Sa1": "mm^3/mm^2", "Sa2": "mm^3/mm^2",
+    "Spc": "1/mm", "S10z": "mm", "S5p": "mm", "S5v": "mm", "Spd": "1/mm^2", "Shv": "mm^3",
+    "Fdmax": "mm", "Fdmean": "mm", "Fden": "cm/cm^2",
+    "motif_count": "1", "motif_threshold": "mm", "motif_mean_volume": "mm^3",
+    "motif_mean_height_surface_ratio": "mm/mm^2", "motif_mean_area": "mm^2",
+}
+
+GROUPS = {
+    "height": ("Sq", "Ssk", "Sku", "Sp", "Sv", "Sz", "Sa"),
+    "spatial": ("Sal", "Str", "Std"),
+    "hybrid": ("Sdq", "Sdr"),
+    "material_ratio": ("Vm", "Vv", "Vmp", "Vmc", "Vvc", "Vvv", "Sk", "Spk", "Svk", "Smr1", "Smr2", "Sa1", "Sa2"),
+    "features": ("Spc", "S10z", "S5p", "S5v", "Spd", "Shv"),
+    "furrows": ("Fdmax", "Fdmean", "Fden"),
+    "motifs": ("motif_count", "motif_threshold", "motif_mean_volume", "motif_mean_height_surface_ratio",
+               "motif_mean_area"),
+}
+
+
+@dataclass(frozen=True)
+class TextureOptions:
+    """Options of the texture stage (config keys under ``texture:``); every one changes numbers.
+
+    despeckle_method/k/axis: see :func:`skidsim.texture.despeckle`; fill: invalid-point filling; form:
+    ``"plane"``/``"none"``/degree; macro_mm: (short, long) wavelength limits of macrotexture (mm);
+    butterworth_order; acf_threshold (s of Sal/Str); acf_on_border ("nan"/"bound"); material ratios
+    vm_p_pct / vv_q_pct (%); mr_classes; pruning_pct and pruning_reference ("Sz"/"Sq"); exclude_edge;
+    spc_half_window (points); motif_pruning_pct; furrow_window_mm; furrow_min_depth_pct; groups: the
+    parameter groups to compute; mpd_axis; workers (scipy.fft threads).
+    """
+
+    despeckle_method: str = "mad"
+    despeckle_k: float | None = None
+    despeckle_axis: int = 1
+    fill: str = "linear"
+    form: str | int = "plane"
+    macro_mm: tuple[float, float] = (0.5, 50.0)
+    butterworth_order: int = 2
+    acf_threshold: float = 0.2
+    acf_on_border: str = "nan"
+    vm_p_pct: float = 10.0
+    vv_q_pct: float = 80.0
+    mr_classes: int = 10001
+    pruning_pct: float = 5.0
+    pruning_reference: str = "Sz"
+    exclude_edge: bool = False
+    spc_half_window: int = 2
+    motif_pruning_pct: float = 5.0
+    furrow_window_mm: float = 2.0
+    furrow_min_depth_pct: float = 5.0
+    groups: tuple[str, ...] = tuple(GROUPS)
+    mpd_axis: int = 1
+    workers: int = 1
+
+    def __post_init__(self) -> None:
+        def bad(key, expected):
+            raise ConfigError(f"texture.{key}: expected {expected}, got {getattr(self, key)!r}")
+
+        if self.despeckle_method not in METHODS:
+            bad("despeckle_method", f"one of {METHODS}")
+        if self.despeckle_axis not in (0, 1) or self.mpd_axis not in (0, 1):
+            bad("despeckle_axis" if self.despeckle_axis not in (0, 1) else "mpd_axis", "0 or 1")
+        if self.fill not in FILL_METHODS:
+            bad("fill", f"one of {FILL_METHODS}")
+        try:
+            form_degree(self.form)
+        except ValueError:
+            bad("form", "'plane', 'none' or a polynomial degree >= 0")
+        if len(self.macro_mm) != 2 or not 0 < self.macro_mm[0] < self.macro_mm[1]:
+            bad("macro_mm", "[short_mm, long_mm] with 0 < short < long")
+        if self.pruning_reference not in PRUNING_REFERENCES:
+            bad("pruning_reference", f"one of {PRUNING_REFERENCES}")
+        if self.acf_on_border not in ("nan", "bound"):
+            bad("acf_on_border", "'nan' or 'bound'")
+        if not 0 < self.acf_threshold < 1:
+            bad("acf_threshold", "a number in (0, 1)")
+        unknown_groups = sorted(set(self.groups) - set(GROUPS))
+        if unknown_groups:
+            raise ConfigError(f"texture.groups: unknown group(s) {unknown_groups}; expected among {list(GROUPS)}")
+        if int(self.butterworth_order) < 1 or int(self.workers) < 1 or int(self.spc_half_window) < 1:
+            bad("butterworth_order", "butterworth_order, workers, spc_half_window >= 1")
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> "TextureOptions":
+        """Build from a config mapping (the workflow's ``texture:`` section); unknown keys or bad values raise
+        :class:`skidsim.errors.ConfigError` naming the key and what was expected."""
+        d = dict(d or {})
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ConfigError(f"texture: unknown key(s) {unknown}; expected a subset of {sorted(names)}")
+        if "macro_mm" in d:
+            d["macro_mm"] = tuple(d["macro_mm"])
+        if "groups" in d:
+            d["groups"] = tuple(d["groups"])
+        return cls(**d)
+
+
+def areal_parameters(surface: Surface, band: str = "raw", options: TextureOptions | dict | None = None
+                     ) -> dict[str, tuple[float, str]]:
+    """All areal parameters of one band surface: ``name -> (value, unit)``.
+
+    ``surface`` must be complete (no NaN; run :func:`skidsim.texture.fill_invalid` / ``separate_bands``
+    first). ``band`` is only used in messages. Heights are referenced to their mean plane.
+    """
+    opt = options if isinstance(options, TextureOptions) else TextureOptions.from_dict(options)
+    z = surface.heights
+    if not np.isfinite(z).all():
+        raise ValueError(f"areal_parameters: surface {surface.name!r} band {band!r} has invalid points; "
+                         "fill them first (fill_invalid)")
+    if min(z.shape) < 8:
+        raise ValueError(f"areal_parameters: surface {surface.name!r} band {band!r} is {z.shape}, need >= 8x8")
+    dx, dy = surface.dx, surface.dy
+    zc = z - z.mean()
+    out: dict[str, float] = {}
+    g = set(opt.groups)
+    if "height" in g:
+        out.update(height_parameters(zc))
+    if "spatial" in g:
+        sp = spatial_parameters(zc, dx, dy, s=opt.acf_threshold, on_border=opt.acf_on_border, workers=opt.workers)
+        out.update({"Sal": sp.Sal, "Str": sp.Str, "Std": sp.Std})
+    if "hybrid" in g:
+        out["Sdq"] = sdq(zc, dx, dy)
+        out["Sdr"] = sdr(zc, dx, dy)
+    if "material_ratio" in g:
+        out.update(material_ratio_parameters(zc, p_pct=opt.vm_p_pct, q_pct=opt.vv_q_pct, n_classes=opt.mr_classes))
+    hills = None
+    if "features" in g or "motifs" in g:
+        t = pruning_threshold(zc, opt.pruning_pct, opt.pruning_reference)
+        hills = segment(-zc, t, dx, dy)
+    if "features" in g:
+        dales = segment(zc, t, dx, dy)
+        out.update(feature_parameters(zc, dx, dy, pruning_pct=opt.pruning_pct,
+                                      pruning_reference=opt.pruning_reference, exclude_edge=opt.exclude_edge,
+                                      spc_half_window=opt.spc_half_window, hills=hills, dales=dales))
+        del dales
+    if "furrows" in g:
+        out.update(furrow_parameters(zc, dx, dy, window_mm=opt.furrow_window_mm,
+                                     min_depth_pct=opt.furrow_min_depth_pct))
+    if "motifs" in g:
+        same = opt.motif_pruning_pct == opt.pruning_pct
+        out.update(motif_parameters(zc, dx, dy, pruning_pct=opt.motif_pruning_pct,
+                                    pruning_reference=opt.pruning_reference, exclude_edge=opt.exclude_edge,
+                                    hills=hills if same else None))
+    return {k: (float(out[k]), UNITS[k]) for k in UNITS if k in out}

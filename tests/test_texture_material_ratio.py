@@ -1,0 +1,68 @@
+"""Sk family and volume parameters against the analytic normal distribution and surfalize."""
+
+import numpy as np
+import pytest
+from scipy import integrate, stats
+
+from skidsim.texture.material_ratio import MaterialRatio, material_ratio_parameters
+
+SIGMA = 0.3  # mm
+
+
+def normal_heights(rows=300, cols=400, seed=1):
+    """Heights at the exact normal quantiles (k + 0.5)/N, shuffled onto the grid: no sampling scatter."""
+    n = rows * cols
+    q = stats.norm.ppf((np.arange(n) + 0.5) / n) * SIGMA
+    return np.random.default_rng(seed).permutation(q).reshape(rows, cols)
+
+
+def vm(c):  # E[max(Z - c, 0)], Z ~ N(0, SIGMA^2)
+    u = c / SIGMA
+    return SIGMA * (stats.norm.pdf(u) - u * stats.norm.sf(u))
+
+
+def vv(c):  # E[max(c - Z, 0)]
+    u = c / SIGMA
+    return SIGMA * (stats.norm.pdf(u) + u * stats.norm.cdf(u))
+
+
+def analytic():
+    h = lambda m: SIGMA * stats.norm.ppf(1 - m / 100)  # noqa: E731  material ratio curve, m in %
+    # equivalent line: least-squares fit over the central 40 % window, which is [30, 70] % for a symmetric curve
+    num = integrate.quad(lambda m: (m - 50) * h(m), 30, 70)[0]
+    den = integrate.quad(lambda m: (m - 50) ** 2, 30, 70)[0]
+    slope = num / den
+    upper, lower = -50 * slope, 50 * slope
+    cp, cq = h(10.0), h(80.0)
+    smr1 = 100 * stats.norm.sf(upper / SIGMA)
+    smr2 = 100 * stats.norm.sf(lower / SIGMA)
+    sa1, sa2 = vm(upper), vv(lower)
+    return {"Vm": vm(cp), "Vv": vv(cp), "Vmp": vm(cp), "Vmc": vm(cq) - vm(cp), "Vvc": vv(cp) - vv(cq),
+            "Vvv": vv(cq), "Sk": upper - lower, "Smr1": smr1, "Smr2": smr2, "Sa1": sa1, "Sa2": sa2,
+            "Spk": 2 * sa1 * 100 / smr1, "Svk": 2 * sa2 * 100 / (100 - smr2)}
+
+
+def test_normal_heights_against_analytic():
+    got = material_ratio_parameters(normal_heights())
+    for k, v in analytic().items():
+        assert got[k] == pytest.approx(v, rel=0.01), k
+
+
+def test_exact_volumes_on_small_set():
+    z = np.array([[3.0, 1.0], [0.0, -2.0]])
+    mrc = MaterialRatio(z)
+    assert mrc.volume_above(0.5) == pytest.approx((2.5 + 0.5) / 4)
+    assert mrc.volume_below(0.5) == pytest.approx((0.5 + 2.5) / 4)
+    assert mrc.smr(1.0) == pytest.approx(50.0)
+    assert mrc.smc(0.0) == 3.0 and mrc.smc(100.0) == -2.0
+
+
+@pytest.mark.peer
+def test_against_surfalize():
+    surfalize = pytest.importorskip("surfalize")
+    z = normal_heights(200, 250, seed=4) ** 3 / SIGMA**2  # skewed, heavy tails
+    z -= z.mean()
+    s = surfalize.Surface(z, 0.05, 0.05)
+    got = material_ratio_parameters(z)
+    for k in ("Vmp", "Vmc", "Vvc", "Vvv", "Sk", "Spk", "Svk", "Smr1", "Smr2"):
+        assert got[k] == pytest.approx(getattr(s, k)(), rel=0.01), k
