@@ -57,6 +57,7 @@ from scipy.optimize import minimize_scalar
 
 from skidsim.errors import InputError, SkidsimError
 from skidsim.friction import KMH_PER_MS, ExponentialDecay
+from skidsim.runlog import atomic_path
 
 #: Parameter bounds (mu_s, mu_k, alpha[s/m]) of the study (section 6.2).
 DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {"mu_s": (0.0, 0.85), "mu_k": (0.0, 0.7), "alpha": (0.0, 1.0)}
@@ -129,20 +130,16 @@ def fe_simulator(pavement, config=None, **simulate_kwargs) -> Simulator:
 
 
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
 
 
 def _atomic_write_parquet(path: Path, df: pd.DataFrame) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    df.to_parquet(tmp, index=False)
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        df.to_parquet(tmp, index=False)
 
 
 # ----------------------------------------------------------------------------------------------------

@@ -27,7 +27,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -37,6 +36,7 @@ import pandas as pd
 from scipy.optimize import minimize, minimize_scalar
 
 from .errors import ConfigError, InputError
+from .runlog import atomic_path, write_parquet
 from .extensions import (CovariateTerm, DrainageIFI, SharedShape, TemperatureShift, ViscoelasticFE,
                          exp_curve, fit_exp_curves)
 
@@ -925,16 +925,8 @@ def diagnose(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFram
 # ----------------------------------------------------------------------------------------------------------------
 
 def _atomic_write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 def _json_safe(o):
@@ -966,9 +958,7 @@ def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, fi
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
     p = out / "residuals.parquet"
-    tmp = out / "residuals.parquet.tmp"
-    residuals.to_parquet(tmp, index=False)
-    os.replace(tmp, p)
+    write_parquet(p, residuals)
     paths["residuals"] = p
     clist = [c.as_dict() if isinstance(c, Cause) else dict(c) for c in causes]
     for rank, c in enumerate(clist, 1):

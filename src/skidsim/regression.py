@@ -1049,11 +1049,9 @@ def run_analysis(design: Design, *, n_train: int = 27, seed: int = 0, grouped_by
 def _write_csv(df: pd.DataFrame, path) -> None:
     from pathlib import Path
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    df.to_csv(tmp, index=False)
-    tmp.replace(path)
+    from skidsim.runlog import write_csv
+
+    write_csv(path, df)
 
 
 def write_analysis(analysis: RegressionAnalysis, directory) -> dict:

@@ -27,7 +27,6 @@ Conventions that change numbers (see ``docs/data-contract.md``):
 from __future__ import annotations
 
 import hashlib
-import os
 import zipfile
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -37,6 +36,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
+from skidsim.runlog import atomic_path
 from skidsim.errors import ScanFormatError
 from skidsim.surface import Surface
 
@@ -417,15 +417,9 @@ def _quantise(h_mm: np.ndarray, valid: np.ndarray, dtype: str, z_increment_mm, p
 
 def atomic_write_bytes(path, writer) -> None:
     """Call ``writer(fileobj)`` on a temporary file next to ``path`` and rename it to ``path`` at the end."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
+    with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             writer(fh)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def write_x3p(path, surface: Surface, dtype: str = "D", z_increment_mm: float | None = None,
