@@ -12,15 +12,29 @@ from skidsim.surface import Surface
 from .style import COLORS, figure
 
 
-def _image(ax, s: Surface, title: str, max_px: int = 600):
+def _image(ax, s: Surface, title: str, max_px: int = 600, detail_mm: float | None = None):
+    """Height image; colour limits at the 0.5 and 99.5 % quantiles so that a few outliers do not flatten it.
+
+    ``detail_mm``: show only a ``detail_mm`` square at the centre at full resolution (microtexture would alias
+    in a decimated full view)."""
     h = s.heights
+    x0 = y0 = 0.0
+    if detail_mm is not None:
+        nx, ny = int(round(detail_mm / s.dx)), int(round(detail_mm / s.dy))
+        i0, j0 = max(0, (h.shape[0] - ny) // 2), max(0, (h.shape[1] - nx) // 2)
+        h = h[i0:i0 + ny, j0:j0 + nx]
+        x0, y0 = j0 * s.dx, i0 * s.dy
     step = max(1, int(np.ceil(max(h.shape) / max_px)))  # decimate for the figure only
-    im = ax.imshow(h[::step, ::step], origin="lower", extent=(0, s.width_mm, 0, s.height_mm), aspect="equal")
+    img = h[::step, ::step]
+    finite = img[np.isfinite(img)]
+    lo, hi = (np.quantile(finite, [0.005, 0.995]) if finite.size else (None, None))
+    im = ax.imshow(img, origin="lower", aspect="equal", vmin=lo, vmax=hi,
+                   extent=(x0, x0 + (h.shape[1] - 1) * s.dx, y0, y0 + (h.shape[0] - 1) * s.dy))
     ax.set_title(title)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.grid(False)
-    ax.figure.colorbar(im, ax=ax, shrink=0.8, label="height (mm)")
+    ax.figure.colorbar(im, ax=ax, shrink=0.8, label="height (mm)", extend="both")
 
 
 def plot_figure7(raw: Surface, despeckled: Surface, macro: Surface, micro: Surface, path: str | Path) -> None:
@@ -28,8 +42,8 @@ def plot_figure7(raw: Surface, despeckled: Surface, macro: Surface, micro: Surfa
     with figure(path, nrows=2, ncols=2, figsize=(10.0, 8.0)) as (fig, axes):
         for ax, s, t in zip(axes.ravel(), (raw, despeckled, macro, micro),
                             ("range image (as scanned)", "despeckled", "macrotexture 0.5-50 mm",
-                             "microtexture < 0.5 mm")):
-            _image(ax, s, t)
+                             "microtexture < 0.5 mm (10 x 10 mm detail)")):
+            _image(ax, s, t, detail_mm=10.0 if s is micro else None)
 
 
 def plot_despeckle_comparison(profile_mm: np.ndarray, dx_mm: float, results: dict[str, np.ndarray],
