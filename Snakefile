@@ -26,6 +26,7 @@ wildcard_constraints:
 include: "workflow/rules/campaign.smk"
 include: "workflow/rules/texture.smk"
 include: "workflow/rules/mesh.smk"
+include: "workflow/rules/solver.smk"
 include: "workflow/rules/calibration.smk"
 include: "workflow/rules/regression.smk"
 include: "workflow/rules/diagnosis.smk"

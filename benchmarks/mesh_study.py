@@ -16,15 +16,15 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 import sys
 from pathlib import Path
 
 import pandas as pd
 
-from skidsim.friction import ExponentialDecay
 from skidsim.plotting.solver import plot_mesh_study
-from skidsim.solver import RandomTexture, SinusoidalSurface, SolverConfig, simulate
+from skidsim.runlog import write_csv
+from skidsim.solver import RandomTexture, SinusoidalSurface, SolverConfig
+from skidsim.solver.mesh_study import mesh_study
 from skidsim.solver.surfaces import to_heightfield
 
 
@@ -51,28 +51,12 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     pav = load_pavement(a.pavement)
-    law = ExponentialDecay(0.4, 0.35, 0.6)
-    rows = []
-    for v in a.speeds:
-        for h in sorted(a.sizes, reverse=True):
-            cfg = SolverConfig(element_mm=h, slide_length_mm=a.slide_mm, window_start_mm=a.window_mm,
-                               mass_scaling=a.mass_scaling, progress_every_s=60)
-            r = simulate(pav, v, law, cfg)
-            rows.append(dict(speed_kmh=v, element_mm=h, sn=r.sn, wall_s=r.wall_s, n_steps=r.n_steps,
-                             n_elements=r.n_elements, dt_s=r.dt_s, element_steps_per_s=r.element_steps_per_s,
-                             slide_mm=r.slide_length_mm, energy_residual_frac=r.energy_residual_fraction(),
-                             mean_contact_area_mm2=r.mean_contact_area_mm2, max_penetration_um=r.max_penetration_um,
-                             mu_at_speed=float(law.mu_kmh(v))))
-            print(f"{v:5.0f} km/h {h:5.2f} mm: SN {r.sn:.4f}  {r.wall_s:7.1f} s  {r.n_steps} steps", flush=True)
-    t = pd.DataFrame(rows)
-    finest = t.loc[t.groupby("speed_kmh")["element_mm"].idxmin(), ["speed_kmh", "sn"]].set_index("speed_kmh")["sn"]
-    t["sn_finest"] = t["speed_kmh"].map(finest)
-    t["error_pct"] = 100.0 * (t["sn"] - t["sn_finest"]).abs() / t["sn_finest"]
+    base = SolverConfig(slide_length_mm=a.slide_mm, window_start_mm=a.window_mm, mass_scaling=a.mass_scaling,
+                        progress_every_s=60)
+    t = mesh_study(pav, a.sizes, a.speeds, base=base, log=logging.getLogger("mesh_study"))
     csv = Path(a.csv)
     csv.parent.mkdir(parents=True, exist_ok=True)
-    tmp = csv.with_name(csv.name + ".tmp")
-    t.to_csv(tmp, index=False)
-    os.replace(tmp, csv)
+    write_csv(csv, t)
     plot_mesh_study(t, a.png)
     print(t.to_string(index=False))
     return 0

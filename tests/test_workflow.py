@@ -55,7 +55,7 @@ def test_dry_run_lists_36_sites(dry_default):
     assert counts.get("calibrate") == 72, counts  # 36 sites x 2 methods
     assert counts.get("predict_fe") == 9, counts  # the study's 27/9 split
     for fan_in in ("synth_table", "validate_campaign", "texture_campaign", "calibration_summary", "regression",
-                   "figure11", "diagnosis"):
+                   "figure11", "diagnosis", "mesh_study"):
         assert counts.get(fan_in) == 1, (fan_in, counts)
 
 

@@ -19,6 +19,8 @@ if not POPULATION:
 
 def all_targets():
     targets = [f"{RESULTS}/texture/table4.csv", f"{RESULTS}/calibration/figure10.png"]
+    if config["mesh_study"]["sizes_mm"]:
+        targets.append(f"{RESULTS}/mesh_study/figure9.png")
     if POPULATION:
         targets += [f"{RESULTS}/regression/figure11.png", f"{DIAG}/causes.json"]
     if SYNTHETIC:
