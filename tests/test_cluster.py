@@ -28,6 +28,9 @@ solver:
 calibration:
   study:
     max_iter: 4
+mesh_study:
+  sizes_mm: []
+  speeds_kmh: [60]
 """
 
 
