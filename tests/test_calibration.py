@@ -14,7 +14,8 @@ import pytest
 
 from skidsim.calibration import (CalibrationError, CalibrationResult, FECache, FEOutcome, aitken_three_point,
                                  calibrate_fast, calibrate_study, comparison_table, figure10_statistics,
-                                 fit_exponential_decay, fit_statistics, measured_at, simulate_speeds, table2,
+                                 fit_exponential_decay, fit_statistics, measured_at, prior_reference_sites,
+                                 simulate_speeds, surrogate_prior, table2,
                                  validation_table)
 from skidsim.errors import InputError
 from skidsim.friction import ExponentialDecay
@@ -393,3 +394,62 @@ def test_fast_slip_model_recovers_law_sampled_at_effective_slip_speed():
     # the ratio model needs more FE runs for the same surrogate
     ratio = calibrate_fast(SlipSurrogate(), meas, model="ratio", tol=1e-6)
     assert ratio.n_fe_runs > res.n_fe_runs
+
+
+class ShiftedSlipSurrogate(SlipSurrogate):
+    """A site whose slider slips faster than the holder by ``extra`` m/s more than :class:`SlipSurrogate`."""
+
+    def __init__(self, G=1.13, extra_ms=0.0):
+        super().__init__(G=G)
+        self.extra_ms = extra_ms
+
+    def __call__(self, speed_kmh, law):
+        n = steps_for(speed_kmh)
+        self.calls.append((speed_kmh, law))
+        self.steps += n
+        s = self.slip_ms(speed_kmh) + self.extra_ms
+        return FEOutcome(sn=self.G * float(law.mu(s)), n_steps=n, wall_s=0.0)
+
+    def curve(self, law):
+        v = np.arange(5.0, 85.0)
+        return pd.DataFrame({"speed_kmh": v, "mu": self.G * law.mu(self.slip_ms(v) + self.extra_ms)})
+
+
+def test_surrogate_prior_from_reference_sites_saves_the_pilot_and_a_batch():
+    """Three reference sites (prior-free) give the prior; a fourth site with a slightly different slider response
+    then converges in one batch of three FE runs (instead of pilot + two batches) and recovers its own law."""
+    laws = [ExponentialDecay(0.70, 0.40, 0.10), ExponentialDecay(0.62, 0.38, 0.12), ExponentialDecay(0.55, 0.30, 0.08)]
+    sites = [ShiftedSlipSurrogate(G=1.12 + 0.01 * i, extra_ms=0.1 * (i - 1)) for i in range(3)]
+    refs = [calibrate_fast(s, s.curve(law), model="slip", tol=1e-4) for s, law in zip(sites, laws)]
+    assert all(r.converged and r.n_fe_runs == 7 for r in refs)
+    prior = surrogate_prior(refs)
+    assert prior["n_sites"] == 3 and prior["speeds_kmh"] == [20.0, 40.0, 60.0]
+    # the median reference is the middle one: G 1.13, the unshifted slip offsets (km/h)
+    assert prior["b"] == pytest.approx([1.13] * 3, abs=1e-6)
+    expected = [SlipSurrogate.slip_ms(s) * 3.6 - s for s in (20.0, 40.0, 60.0)]
+    assert prior["slip_offsets_kmh"] == pytest.approx(expected, abs=1e-3)
+    site = ShiftedSlipSurrogate(G=1.135, extra_ms=0.05)
+    law = ExponentialDecay(0.66, 0.36, 0.11)
+    with_prior = calibrate_fast(site, site.curve(law), model="slip", tol=0.01, prior=prior)
+    assert with_prior.converged and with_prior.n_fe_runs == 3
+    assert "pilot" not in set(with_prior.history["stage"])
+    assert with_prior.settings["prior"]["b"] == pytest.approx(prior["b"])
+    v = np.array([20.0, 40.0, 60.0])
+    assert np.max(np.abs(with_prior.params.mu_kmh(v) - law.mu_kmh(v))) < 0.01
+    # the same site on its own: pilot + two batches, and a site calibrated with a prior is no reference
+    alone = calibrate_fast(ShiftedSlipSurrogate(G=1.135, extra_ms=0.05), site.curve(law), model="slip", tol=0.01)
+    assert alone.n_fe_runs == 7
+    with pytest.raises(ValueError, match="no converged prior-free"):
+        surrogate_prior([with_prior])
+    with pytest.raises(ValueError, match="only defined for model='slip'"):
+        calibrate_fast(site, site.curve(law), model="ratio", prior=prior)
+    with pytest.raises(ValueError, match="same length"):
+        calibrate_fast(site, site.curve(law), prior=dict(prior, b=[1.1, 1.1]))
+
+
+def test_prior_reference_sites_spread_over_the_table():
+    sites = [f"S{i}" for i in range(36)]
+    assert prior_reference_sites(sites, 3) == ["S0", "S18", "S35"]  # indices round(0, 17.5, 35)
+    assert prior_reference_sites(sites[:2], 3) == ["S0", "S1"]
+    assert prior_reference_sites(sites, 0) == []
+    assert prior_reference_sites(sites, 1) == ["S0"]

@@ -775,7 +775,8 @@ def calibrate_fast(simulate: Simulator, measured_curve, *, speeds_kmh: Sequence[
                    tol: float = 0.01, max_fe_runs: int = 15, fit_on: str = "trace",
                    fit_range_kmh: tuple[float, float] | None = None, bounds: Mapping | None = None,
                    g_prior: float = 1.0, pilot_speed_kmh: float | str | None = "fastest", model: str = "slip",
-                   secant_min_dmu: float = 0.01, window_kmh: float | None = None, source: str | Path | None = None) -> CalibrationResult:
+                   secant_min_dmu: float = 0.01, window_kmh: float | None = None, source: str | Path | None = None,
+                   prior: Mapping[str, Sequence[float]] | None = None) -> CalibrationResult:
     """Fit all three parameters to the measured curve with few FE runs (ours).
 
     Model: ``SN_FE(v) ~ a(v) + b(v) mu(v)``, per calibration speed ``v_i`` (km/h); between them a and b
@@ -802,6 +803,12 @@ def calibrate_fast(simulate: Simulator, measured_curve, *, speeds_kmh: Sequence[
     measured values at the calibration speeds, see :func:`measured_at`). A dict is always ``"speeds"``.
     max_fe_runs: FE evaluation budget; when the next batch would exceed it the best verified law is kept
     (smallest RMSE vs measured at the calibration speeds), converged=False with a message.
+
+    prior: the surrogate's starting state learned on other sites of the campaign (see :func:`surrogate_prior`):
+    ``{"speeds_kmh": [...], "b": [...], "slip_offsets_kmh": [...]}`` (the geometric factor g and the slip
+    offsets d in km/h at those speeds, interpolated linearly to ``speeds_kmh``, constant beyond). With a prior the
+    pilot run is skipped: the first batch is usually already within ``tol`` (docs/calibration.md). Only for
+    ``model="slip"``.
     """
     t_start = time.perf_counter()
     if fit_on not in ("trace", "speeds"):
@@ -838,6 +845,23 @@ def calibrate_fast(simulate: Simulator, measured_curve, *, speeds_kmh: Sequence[
     d_i = np.zeros(spd.size)  # effective slip-speed offsets, km/h (model="slip")
     last: list[tuple[float, float] | None] = [None] * spd.size  # (mu, SN) of the latest run per speed
     ev = _Evaluator(simulate, "ours")
+    if prior is not None:
+        if model != "slip":
+            raise ValueError("a surrogate prior is only defined for model='slip'")
+        try:
+            pv = np.asarray(prior["speeds_kmh"], dtype=float)
+            pb = np.asarray(prior["b"], dtype=float)
+            pd_ = np.asarray(prior["slip_offsets_kmh"], dtype=float)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"prior must map speeds_kmh, b and slip_offsets_kmh to number lists, got {prior!r}") from exc
+        if not (pv.ndim == 1 and pv.size >= 1 and pb.shape == pv.shape and pd_.shape == pv.shape
+                and np.all(np.isfinite(pb)) and np.all(pb > 0) and np.all(np.isfinite(pd_))
+                and np.all(np.diff(pv) > 0)):
+            raise ValueError(f"prior needs increasing speeds_kmh and finite b > 0 and slip_offsets_kmh of the same "
+                             f"length, got {prior!r}")
+        b_i = np.interp(spd, pv, pb)
+        d_i = np.interp(spd, pv, pd_)
+        pilot_speed_kmh = None
     if pilot_speed_kmh == "fastest":
         pilot_speed_kmh = float(spd[-1])
     if pilot_speed_kmh is not None:
@@ -933,7 +957,42 @@ def calibrate_fast(simulate: Simulator, measured_curve, *, speeds_kmh: Sequence[
                                        "g_prior": g_prior, "pilot_speed_kmh": pilot_speed_kmh, "model": model,
                                        "slip_offsets_kmh": d_i.tolist(), "b": b_i.tolist(), "a": a_i.tolist(),
                                        "secant_min_dmu": secant_min_dmu,
-                                       "window_kmh": window_kmh})
+                                       "window_kmh": window_kmh,
+                                       "prior": None if prior is None else {k: [float(x) for x in prior[k]] for k in
+                                                                            ("speeds_kmh", "b", "slip_offsets_kmh")}})
+
+
+def surrogate_prior(results: Sequence[CalibrationResult]) -> dict:
+    """The campaign prior of our method: the median, over reference sites calibrated without a prior, of the
+    surrogate's final geometric factor ``b`` and slip offsets ``d`` (km/h) at each calibration speed.
+
+    Both are properties of the FE slider's dynamics (how much faster its contact nodes slip than the holder
+    moves, and the ratio of SN to mu at the effective slip speed) and vary little between sites of one campaign
+    (default campaign: d = 6.9 +- 1.3, 5.3 +- 1.0, 2.9 +- 0.8 km/h at 20, 40, 60 km/h; b = 1.045 +- 0.013).
+    Raises ValueError when no result is usable (converged, model "slip", same calibration speeds).
+    """
+    usable = [r for r in results if r.method == "ours" and r.converged and r.settings.get("model") == "slip"
+              and r.settings.get("prior") is None]
+    if not usable:
+        raise ValueError("surrogate_prior: no converged prior-free 'ours' calibration with model 'slip' to learn from")
+    speeds = [tuple(float(v) for v in r.settings["speeds_kmh"]) for r in usable]
+    if len(set(speeds)) != 1:
+        raise ValueError(f"surrogate_prior: reference calibrations used different speeds {sorted(set(speeds))}")
+    b = np.median(np.array([r.settings["b"] for r in usable], dtype=float), axis=0)
+    d = np.median(np.array([r.settings["slip_offsets_kmh"] for r in usable], dtype=float), axis=0)
+    return {"speeds_kmh": list(speeds[0]), "b": b.tolist(), "slip_offsets_kmh": d.tolist(), "n_sites": len(usable)}
+
+
+def prior_reference_sites(sites: Sequence[str], n: int) -> list[str]:
+    """The ``n`` reference sites whose prior-free calibrations make the prior: evenly spread over the site
+    table's order (indices ``round(linspace(0, len - 1, n))``), all sites when ``n >= len(sites)``, none for 0."""
+    sites = list(sites)
+    if n <= 0 or not sites:
+        return []
+    if n >= len(sites):
+        return sites
+    idx = sorted(set(int(round(x)) for x in np.linspace(0, len(sites) - 1, n)))
+    return [sites[i] for i in idx]
 
 
 def _invert_slip_kmh(law: ExponentialDecay, mu_target: float) -> float | None:

@@ -9,6 +9,7 @@ rule calibrate:
         pavement=f"{RESULTS}/sites/{{site}}/pavement.npz",
         dft=f"{RESULTS}/ingest/dft_points.parquet",
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
+        prior=calibration_prior_of,
     output:
         result=f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json",
         history=f"{RESULTS}/sites/{{site}}/calibration_{{method}}_history.parquet",

@@ -77,3 +77,18 @@ def campaign_inputs(wildcards):
 
 
 INGEST = f"{RESULTS}/ingest/sites.parquet"
+
+# Our calibration learns the FE surrogate's starting state (geometric factor, slip offsets) on a few reference
+# sites spread over the table, calibrated without a prior; every other site starts from their median
+# (skidsim.calibration.surrogate_prior, docs/calibration.md).
+from skidsim.calibration import prior_reference_sites  # noqa: E402
+
+PRIOR_SITES = (prior_reference_sites(SITES, int(config["calibration"]["ours"].get("prior_sites", 3)))
+               if config["calibration"]["ours"].get("model", "slip") == "slip" else [])
+
+
+def calibration_prior_of(wildcards):
+    """The reference calibrations a site's fit starts from: none for the study's method and the reference sites."""
+    if wildcards.method != "ours" or wildcards.site in PRIOR_SITES or not PRIOR_SITES:
+        return []
+    return [f"{RESULTS}/sites/{s}/calibration_ours.json" for s in PRIOR_SITES]

@@ -27,9 +27,21 @@ else:
     c = cfg["ours"]
     traces = pd.read_parquet(snakemake.input.traces)
     trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
+    prior = None
+    if snakemake.input.prior:
+        refs = [calibration.CalibrationResult.from_json(p) for p in snakemake.input.prior]
+        try:
+            prior = calibration.surrogate_prior(refs)
+        except ValueError as exc:  # e.g. no reference site converged: go on without a prior, say so
+            log.warning("%s: no surrogate prior (%s); calibrating with a pilot run", site, exc)
+        else:
+            log.info("%s: surrogate prior from %d reference site(s): b %s, slip offsets %s km/h at %s km/h", site,
+                     prior["n_sites"], [round(x, 4) for x in prior["b"]],
+                     [round(x, 2) for x in prior["slip_offsets_kmh"]], prior["speeds_kmh"])
+    fit_range = tuple(c["fit_range_kmh"]) if c.get("fit_range_kmh") else None
     result = calibration.calibrate_fast(simulate, trace, speeds_kmh=speeds, tol=c["tol"],
-                                        max_fe_runs=c["max_fe_runs"], model=c["model"], fit_range_kmh=tuple(c["fit_range_kmh"]) if c.get("fit_range_kmh") else None,
-                                        source=snakemake.input.traces)
+                                        max_fe_runs=c["max_fe_runs"], model=c["model"], fit_range_kmh=fit_range,
+                                        source=snakemake.input.traces, prior=prior)
 log.info("%s %s: %s; %d FE runs, %d steps, converged=%s %s", site, method, result.params, result.n_fe_runs,
          result.n_steps, result.converged, result.message)
 write_parquet(snakemake.output.history, result.history.assign(site=site, method=method))
