@@ -34,6 +34,8 @@ rule reconstruct:
         friction_start=config["calibration"]["study"]["start"],
     log:
         "logs/reconstruct/{site}.log",
+    benchmark:
+        "benchmarks/out/reconstruct/{site}.tsv"
     threads: 1
     resources:
         mem_mb=2000,

@@ -13,6 +13,8 @@ rule despeckle:
         cfg=config["texture"],
     log:
         "logs/despeckle/{site}.log",
+    benchmark:
+        "benchmarks/out/despeckle/{site}.tsv"
     threads: 1
     resources:
         mem_mb=1500,
@@ -31,6 +33,8 @@ rule separate_bands:
         cfg=config["texture"],
     log:
         "logs/separate_bands/{site}.log",
+    benchmark:
+        "benchmarks/out/separate_bands/{site}.tsv"
     threads: 1
     resources:
         mem_mb=2000,
@@ -49,6 +53,8 @@ rule mpd:
         cfg=config["texture"],
     log:
         "logs/mpd/{site}.log",
+    benchmark:
+        "benchmarks/out/mpd/{site}.tsv"
     threads: 1
     resources:
         mem_mb=1500,
@@ -94,6 +100,8 @@ rule figure7:
         ),
     log:
         "logs/figure7/{site}.log",
+    benchmark:
+        "benchmarks/out/figure7/{site}.tsv"
     threads: 1
     resources:
         mem_mb=2000,
