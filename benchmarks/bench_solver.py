@@ -1,8 +1,12 @@
 """Speed of the explicit solver: internal-force kernel, whole steps, mass scaling, campaign vs reference.
 
-Usage: ``python benchmarks/bench_solver.py [--quick] [--full]``. Prints medians and ratios. BLAS is limited to
-one thread (threadpoolctl) so that the figures are one-core figures. ``--full`` also runs the reference preset
-over the full 114.3 mm at 20 km/h (~2 min) and the campaign-vs-reference SN comparison at 20/40/60 km/h.
+Usage: ``python benchmarks/bench_solver.py [--quick] [--full] [--pavement PATH.npz [--speed 20] [--slide-mm 114.3]
+[--element-mm 0.5]]``. Prints medians and ratios. BLAS is limited to one thread (threadpoolctl) so that the
+figures are one-core figures. ``--full`` also runs the reference preset over the full 114.3 mm at 20 km/h (~2 min)
+and the campaign-vs-reference SN comparison at 20/40/60 km/h. ``--pavement PATH`` times only the given real
+pavement (a Heightfield ``.npz`` of skidsim.reconstruct, e.g. ``results/sites/E1-1/pavement.npz``): the kernel
+against the naive gather/scatter in the same run, then one slide (default: the reference preset, 0.5 mm, 20 km/h,
+the full 114.3 mm clamped to the strip) with wall time, element-steps/s and the share of each phase of the step.
 Timings on a shared machine are disturbed by other processes: report them with that caveat.
 """
 
@@ -63,12 +67,41 @@ def bench_run(cfg: SolverConfig, speed_kmh: float, label: str, pavement) -> obje
     return r
 
 
+def bench_pavement(path: str, speed_kmh: float, slide_mm: float, element_mm: float, repeat: int) -> None:
+    """Kernel vs naive gather/scatter, then one timed slide on a real pavement with the per-phase shares."""
+    from skidsim.reconstruct import Heightfield
+
+    pav = Heightfield.from_npz(path)
+    print(f"pavement {path}: {pav.shape[1]} x {pav.shape[0]} nodes, spacing {pav.dx_m * 1e3:.3f} mm")
+    print(f"internal-force kernel, {element_mm} mm slider, median of {repeat}")
+    bench_kernel(element_mm, repeat)
+    cfg = SolverConfig.reference(element_mm=element_mm, slide_length_mm=slide_mm, progress_every_s=1e9)
+    print(f"one slide: {element_mm} mm, {speed_kmh:g} km/h, {slide_mm} mm requested, no mass scaling")
+    r = bench_run(cfg, speed_kmh, f"{element_mm} mm {speed_kmh:g} km/h", pav)
+    print(f"  slide {r.slide_length_mm:.1f} mm (clamped {r.slide_clamped}), {r.n_steps} steps "
+          f"({r.preload_steps} preload), dt {r.dt_s * 1e6:.4f} us (slope bound |grad z|^2 "
+          f"{r.meta['slope_bound']:.1f}), wall {r.wall_s:.1f} s, {r.element_steps_per_s / 1e6:.2f} M element-steps/s")
+    ph = r.meta["phase_s"]
+    for name, t in sorted(ph.items(), key=lambda kv: -kv[1]):
+        print(f"    {name:16s} {t:7.1f} s  {100 * t / r.wall_s:5.1f} %  {1e3 * t / r.n_steps:.3f} ms/step")
+    tr = r.trace
+    print(f"  mean contact nodes {tr['contact_nodes'].mean():.1f}, SN {r.sn:.4f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--full", action="store_true")
+    ap.add_argument("--pavement", default=None, help="Heightfield .npz: time a slide on this real pavement only")
+    ap.add_argument("--speed", type=float, default=20.0, help="km/h (with --pavement)")
+    ap.add_argument("--slide-mm", type=float, default=114.3, help="mm (with --pavement)")
+    ap.add_argument("--element-mm", type=float, default=0.5, help="mm (with --pavement)")
     a = ap.parse_args()
     rep = 3 if a.quick else 7
+    if a.pavement:
+        with threadpool_limits(1, user_api="blas"):
+            bench_pavement(a.pavement, a.speed, a.slide_mm, a.element_mm, rep)
+        return
     pav = to_heightfield(RandomTexture(), 0.1e-3)  # the scanned-pavement code path (C1 Heightfield)
     with threadpool_limits(1, user_api="blas"):
         print("internal-force kernel, 0.5 mm slider (15,360 hexahedra), median of", rep)

@@ -60,6 +60,19 @@ def test_structured_kernel_equals_naive_gather_scatter():
         np.vdot(v, k.force(u, np.empty_like(u))))
     # layout round trip
     np.testing.assert_array_equal(to_internal(to_mesh_layout(u)), u)
+    # negate=True is -f_int bit for bit; a non-cubic mesh (nx != ny != nz) exercises the padded slab offsets
+    mesh2 = SliderMesh.box(7.0, 3.0, 4.0, element_mm=1.0)
+    ke2 = element_stiffness(MAT, mesh2.hx, mesh2.hy, mesh2.hz)
+    u2 = np.random.default_rng(5).standard_normal((3, mesh2.nz + 1, mesh2.ny + 1, mesh2.nx + 1))
+    k2 = StructuredKernel(mesh2, ke2)
+    f_pos = k2.force(u2, np.empty_like(u2)).copy()
+    np.testing.assert_array_equal(k2.force(u2, np.empty_like(u2), negate=True), -f_pos)
+    np.testing.assert_allclose(f_pos, NaiveKernel(mesh2, ke2).force(u2, np.empty_like(u2)), rtol=0,
+                               atol=1e-12 * np.abs(f_pos).max())
+    # dummy (padding) columns carry nothing: the strain energy is that of the real elements
+    ue_real = k2.real_columns(k2.ue).reshape(24, -1)
+    assert np.count_nonzero(k2.ue) == np.count_nonzero(ue_real) == 24 * mesh2.n_elements
+    assert k2.strain_energy() == pytest.approx(0.5 * np.vdot(u2, f_pos), rel=1e-12)
 
 
 def test_lumped_mass_is_total_mass():

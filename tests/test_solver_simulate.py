@@ -83,7 +83,17 @@ def test_outputs_trace_and_vtu(tmp_path):
                  trace_path=tmp_path / "t.parquet", vtu_dir=tmp_path / "vtu",
                  progress=lambda *a: calls.append(a))
     t = pd.read_parquet(tmp_path / "t.parquet")
-    assert list(t.columns) == ["time_s", "position_mm", "tangential_n", "normal_n", "contact_area_mm2"]
+    assert list(t.columns) == ["time_s", "position_mm", "tangential_n", "normal_n", "contact_area_mm2",
+                               "friction_x_n", "contact_nodes", "stick_nodes"]
+    # flat plane: the whole resisting force is friction, every bottom node is in contact, none held by the limit
+    assert np.allclose(t["friction_x_n"], t["tangential_n"], rtol=1e-9, atol=1e-12)
+    steady = t[t["position_mm"] >= cfg.window_start_mm]   # (2 of the 99 nodes lift briefly at the start)
+    assert (steady["contact_nodes"] == (cfg.slider_length_mm / 2 + 1) * (cfg.slider_width_mm / 2 + 1)).all()
+    assert (steady["stick_nodes"] == 0).all()
+    # per-phase wall times: all six phases timed, together not more than the run
+    ph = r.meta["phase_s"]
+    assert set(ph) == {"internal_force", "damping_load", "contact", "friction", "update", "output", "setup_and_rest"}
+    assert all(v >= 0 for v in ph.values()) and sum(ph.values()) == pytest.approx(r.wall_s, rel=1e-6)
     assert t["position_mm"].iloc[-1] == pytest.approx(r.slide_length_mm, abs=0.1)
     assert len(list((tmp_path / "vtu").glob("*.vtu"))) == 3 and (tmp_path / "vtu" / "slider.pvd").exists()
     assert calls and calls[-1][0] == r.n_steps
@@ -125,3 +135,37 @@ def test_mesh_study_script_and_plots(tmp_path):
     r = simulate(FlatPlane(), 40, ConstantFriction(0.4), FAST)
     plot_trace(r.trace, tmp_path / "t.png", window_mm=r.window_mm)
     assert (tmp_path / "t.png").exists()
+
+
+class _NoBound:
+    """The same Heightfield without its bicubic cells: the solver then evaluates every bottom node."""
+
+    def __init__(self, hf):
+        self.hf = hf
+        self.extent = hf.extent
+
+    def evaluate(self, x, y):
+        return self.hf.evaluate(x, y)
+
+
+def test_contact_candidate_pruning_is_exact():
+    """The per-cell Bernstein bound (SurfaceBound) only skips nodes that cannot touch: same run to round-off."""
+    from skidsim.solver.surfaces import SurfaceBound, to_heightfield
+
+    hf = to_heightfield(SinusoidalSurface(amplitude_m=0.2e-3, wavelength_x_m=3e-3, wavelength_y_m=4e-3,
+                                          extent_m=(0.0, 0.04, -0.01, 0.01)), 0.25e-3)
+    b = SurfaceBound(hf)
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-1e-3, 0.041, 200_000), rng.uniform(-0.011, 0.011, 200_000)
+    z, _, _ = hf.evaluate(x, y)
+    slack = b.zmax_m.take(b.cells(x.copy(), y.copy())) - z
+    assert slack.min() >= 0.0                      # an upper bound everywhere (also outside the grid)
+    assert np.median(slack) < 0.2 * 0.2e-3 * 2     # and a useful one (well below the peak-to-valley height)
+    cfg = TEX_CFG.replace(slide_length_mm=3.0, window_start_mm=1.0)
+    law = ExponentialDecay(0.6, 0.35, 0.3)
+    a = simulate(hf, 40, law, cfg)
+    c = simulate(_NoBound(hf), 40, law, cfg)
+    assert a.n_steps == c.n_steps and a.mean_contact_area_mm2 < 0.5 * 20 * 16
+    assert a.sn == pytest.approx(c.sn, rel=1e-10)
+    assert np.allclose(a.trace["tangential_n"], c.trace["tangential_n"], rtol=1e-9, atol=1e-12)
+    assert (a.trace["contact_nodes"] == c.trace["contact_nodes"]).all()

@@ -48,9 +48,15 @@ from skidsim.solver.config import SolverConfig
 from skidsim.solver.kernel import StructuredKernel, to_internal, to_mesh_layout
 from skidsim.solver.material import RubberMaterial, element_matrices, lumped_mass
 from skidsim.solver.results import SimulationResult, VtuSeriesWriter, write_trace_parquet
-from skidsim.solver.surfaces import pavement_extent_m
+from skidsim.solver.surfaces import SurfaceBound, pavement_extent_m
 
 log = logging.getLogger("skidsim.solver")
+
+#: Phases of a time step timed by :func:`simulate` (``result.meta["phase_s"]``, wall s, plus ``setup_and_rest``):
+#: internal force (kernel and Prony update), damping and load, contact (candidate search, surface evaluation,
+#: penalty forces), friction, update (holder, velocities, positions, energy bookkeeping), output (trace rows,
+#: preload check, VTU, progress).
+PHASES = ("internal_force", "damping_load", "contact", "friction", "update", "output")
 
 
 def material_from_config(config: SolverConfig) -> RubberMaterial:
@@ -214,6 +220,8 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     n_total = n_pre + n_slide
     t_ramp = n_ramp * dt
     fz_prev_check = None
+    c_cached = None
+    neg_cm = None
 
     # ---- state ---------------------------------------------------------------------------------------------------
     u = np.zeros_like(X)
@@ -223,10 +231,17 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     tmp = np.zeros_like(X)
     fdamp = np.zeros_like(X)
     dt_minv = dt * minv[None]
-    ub, vb, fb = u[:, 0], v[:, 0], f[:, 0]                # bottom face views (3, ny+1, nx+1)
-    Xb = X[:, 0]
-    inv_mb_dt = dt / m_b
-    mb_over_dt = m_b / dt
+    # bottom face as flat views (3, (ny+1)(nx+1)): each component's face block is contiguous in the layout
+    ub, vb, fb = u[:, 0].reshape(3, -1), v[:, 0].reshape(3, -1), f[:, 0].reshape(3, -1)
+    assert np.shares_memory(ub, u) and np.shares_memory(vb, v) and np.shares_memory(fb, f)
+    Xb = X[:, 0].reshape(3, -1)
+    m_bf = m_b.ravel()
+    k_pen_f = k_pen.ravel()
+    area_bf = area_b.ravel()
+    inv_mb_dt = dt / m_bf
+    mb_over_dt = m_bf / dt
+    bound = SurfaceBound.of(pavement)  # per-cell upper bound of the surface (None: every node is a candidate)
+    all_nodes = np.arange(m_bf.size)
 
     every = int(config.trace_every)
     n_rec = (n_slide + every - 1) // every
@@ -235,6 +250,9 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     rec_ft = np.empty(n_rec)
     rec_fn = np.empty(n_rec)
     rec_a = np.empty(n_rec)
+    rec_ff = np.empty(n_rec)
+    rec_nc = np.empty(n_rec, dtype=np.int64)
+    rec_ns = np.empty(n_rec, dtype=np.int64)
 
     e = dict(external=0.0, friction=0.0, damping=0.0, viscous=0.0)
     state0 = {}
@@ -245,13 +263,18 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     max_pen = 0.0
     preload_force = preload_area = 0.0
     last_log = t_wall0
-    fric = np.zeros((3,) + area_b.shape)
-    fcn = np.zeros((3,) + area_b.shape)
+    fric = np.zeros((3, 0))
+    fcn = np.zeros((3, 0))
+    ia = all_nodes[:0]
+    n_stick = 0
+    N = np.zeros(0)
     log.info("simulate: %d elements, dt %.3g us, <= %d preload + %d slide steps at %.1f km/h over %.1f mm",
              mesh.n_elements, dt * 1e6, n_pre, n_slide, speed_kmh, slide * 1e3)
 
     rec = 0
     step = -1
+    perf = time.perf_counter
+    ph = [0.0] * 6  # wall s per phase: internal force, damping + load, contact, friction, update, output
     while step + 1 < n_total:
         step += 1
         sliding = step >= n_pre
@@ -264,14 +287,16 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
             state0 = dict(kinetic=0.5 * float(np.vdot(mass, (v * v).sum(axis=0))),
                           strain=kern.strain_energy(), contact=pen_energy)
         # ---- internal force (and Prony history) at u(n)
-        kern.force(u, fint)
+        t_a = perf()
+        kern.force(u, f, negate=True)                    # f = -f_int, bit for bit
         if kern.g.size:
             diss = kern.relax(dt)
             if sliding:
                 e["viscous"] += diss
-        np.negative(fint, out=f)
         lf = 1.0 if sliding else _ramp(step * dt, t_ramp)
         f[2, -1] += lf * f_top
+        t_b = perf()
+        ph[0] += t_b - t_a
         # ---- damping (mass proportional, velocity relative to the holder)
         c = config.slide_damping_per_s if sliding else config.preload_damping_per_s
         vx_frame = v_slide if sliding else 0.0
@@ -279,42 +304,64 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         # follows the texture is not resisted; preload: to the ground (dynamic relaxation of the whole slider)
         vz_frame = vz_holder if sliding else 0.0
         if c > 0:
-            np.multiply(v, mass[None], out=fdamp)
+            if c != c_cached:
+                c_cached = c
+                neg_cm = -c * mass
+            np.multiply(v, neg_cm[None], out=fdamp)       # -c m (v - v_frame), frame terms on two components
             if vx_frame:
-                fdamp[0] -= vx_frame * mass
+                fdamp[0] -= vx_frame * neg_cm
             if vz_frame:
-                fdamp[2] -= vz_frame * mass
-            fdamp *= -c
+                fdamp[2] -= vz_frame * neg_cm
             f += fdamp
-        # ---- contact normal (penalty, conservative)
+        t_a = perf()
+        ph[1] += t_a - t_b
+        # ---- contact normal (penalty, conservative), evaluated on the candidate nodes only: those below the
+        # upper bound of the surface in their cell (a node above it cannot penetrate; exact, no tolerance)
         xb = Xb[0] + ub[0]
         yb = Xb[1] + ub[1]
         zb = Xb[2] + ub[2]
-        zs, gx, gy = pavement.evaluate(xb, yb)
-        d = zs - zb
-        act = d > 0.0
-        d = np.where(act, d, 0.0)
-        kd = k_pen * d
-        fcn[0] = -kd * gx
-        fcn[1] = -kd * gy
+        cand = all_nodes if bound is None else bound.candidates(xb, yb, zb)
+        if cand.size:
+            zs, gx, gy = pavement.evaluate(xb[cand], yb[cand])
+            d = zs - zb[cand]
+            act = d > 0.0
+            ia = cand[act]                                # nodes in contact
+            d = d[act]
+            gx = gx[act]
+            gy = gy[act]
+        else:
+            ia = cand
+            d = gx = gy = np.zeros(0)
+        kd = k_pen_f[ia] * d
+        fcn = np.empty((3, ia.size))
+        np.multiply(kd, gx, out=fcn[0])
+        np.negative(fcn[0], out=fcn[0])
+        np.multiply(kd, gy, out=fcn[1])
+        np.negative(fcn[1], out=fcn[1])
         fcn[2] = kd
-        fb += fcn
-        pen_energy = 0.5 * float(np.vdot(k_pen, d * d))
-        # ---- friction with the stick limit
+        fb[:, ia] += fcn
+        pen_energy = 0.5 * float(np.dot(kd, d))
+        t_b = perf()
+        ph[2] += t_b - t_a
+        # ---- friction with the stick limit (nodes in contact; the others carry none)
         n_len = np.sqrt(1.0 + gx * gx + gy * gy)
         N = kd * n_len
-        vt = vb + fb * inv_mb_dt                          # trial velocity without friction
+        vt = vb[:, ia] + fb[:, ia] * inv_mb_dt[ia]       # trial velocity without friction
         nxh, nyh, nzh = -gx / n_len, -gy / n_len, 1.0 / n_len
         vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
         vt[0] -= vn * nxh
         vt[1] -= vn * nyh
         vt[2] -= vn * nzh
         s = np.sqrt((vt * vt).sum(axis=0))
-        mu = law.mu(s)
-        fmag = np.minimum(mu * N, mb_over_dt * s)
+        mu_n = law.mu(s) * N
+        stick_lim = mb_over_dt[ia] * s
+        n_stick = int(np.count_nonzero(stick_lim < mu_n))  # nodes held by the stick limit (diagnostic)
+        fmag = np.minimum(mu_n, stick_lim)
         scale = np.where(s > 0.0, -fmag / np.where(s > 0.0, s, 1.0), 0.0)
-        np.multiply(vt, scale, out=fric)
-        fb += fric
+        fric = vt * scale
+        fb[:, ia] += fric
+        t_a = perf()
+        ph[3] += t_a - t_b
         # ---- rigid holder: top x/y velocity prescribed (reaction = -(net force) there), one common z velocity
         react_x = -float(f[0, -1].sum())
         fz_holder = float(f[2, -1].sum())
@@ -323,7 +370,7 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         vz_holder = vz_holder + dt * (fz_holder + fz_hd) / m_holder
         # ---- update
         if sliding:
-            vb_old = vb.copy()
+            vb_old = vb[:, ia]
             if c > 0:
                 fd_dot_v_old = float(np.vdot(fdamp, v))  # avoids copying v: f_d.(v_old + v_new) in two dots
         np.multiply(f, dt_minv, out=tmp)
@@ -335,7 +382,7 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
             h = 0.5 * dt
             e["external"] += h * (-config.load_n * (vz_old + vz_holder) + react_x * 2.0 * vx_frame)
             e["damping"] -= h * fz_hd * (vz_old + vz_holder)
-            e["friction"] -= h * float(np.vdot(fric, vb_old + vb))
+            e["friction"] -= h * float(np.vdot(fric, vb_old + vb[:, ia]))
             if c > 0:
                 # dashpots between each node and the frame (vx_frame, 0, vz_frame): they dissipate
                 # c m |w|^2 (w = velocity relative to the frame, >= 0), the holder feeds them f_d . v_frame
@@ -344,9 +391,11 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
                 e["external"] += h * fd_frame
         np.multiply(v, dt, out=tmp)
         u += tmp
+        t_b = perf()
+        ph[4] += t_b - t_a
         # ---- pavement force on the slider (at step n)
         fz_sum = float(fcn[2].sum() + fric[2].sum())
-        area_now = float(area_b[act].sum())
+        area_now = float(area_bf[ia].sum())
         if not sliding and step >= n_ramp and (step - n_ramp) % n_check == 0:
             # preload converged: contact force within tolerance of the load at two checks in a row
             ok = abs(fz_sum - config.load_n) <= config.preload_tolerance * config.load_n
@@ -355,7 +404,7 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
                 n_total = n_pre + n_slide
             fz_prev_check = fz_sum if ok else None
         if sliding:
-            if d.max() > max_pen:
+            if d.size and d.max() > max_pen:
                 max_pen = float(d.max())
             i = step - n_pre
             if i % every == 0:
@@ -364,12 +413,16 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
                 rec_ft[rec] = -float(fcn[0].sum() + fric[0].sum())
                 rec_fn[rec] = fz_sum
                 rec_a[rec] = area_now
+                rec_ff[rec] = -float(fric[0].sum())
+                rec_nc[rec] = ia.size
+                rec_ns[rec] = n_stick
                 rec += 1
             if vtu is not None and i in vtu_steps:
                 p = np.zeros(mass.shape)
-                p[0] = N / area_b
+                p[0].reshape(-1)[ia] = N / area_bf[ia]
                 vtu.write(i * dt, mesh.coordinates, to_mesh_layout(u), to_mesh_layout(p))
-        now = time.perf_counter()
+        now = perf()
+        ph[5] += now - t_b
         if now - last_log >= config.progress_every_s:
             last_log = now
             el = now - t_wall0
@@ -388,7 +441,8 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     energies["residual"] = energies["external"] - sum(energies[k] for k in ("kinetic", "strain", "contact", "friction",
                                                                              "hourglass", "damping", "viscous"))
     trace = pd.DataFrame({"time_s": rec_t[:rec], "position_mm": rec_x[:rec] * 1e3, "tangential_n": rec_ft[:rec],
-                          "normal_n": rec_fn[:rec], "contact_area_mm2": rec_a[:rec] * 1e6})
+                          "normal_n": rec_fn[:rec], "contact_area_mm2": rec_a[:rec] * 1e6,
+                          "friction_x_n": rec_ff[:rec], "contact_nodes": rec_nc[:rec], "stick_nodes": rec_ns[:rec]})
     w0 = config.window_start_mm
     w1 = slide * 1e3 if config.window_end_mm is None else min(config.window_end_mm, slide * 1e3)
     win = (trace["position_mm"] >= w0) & (trace["position_mm"] <= w1)
@@ -400,6 +454,8 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     if trace_path is not None:
         write_trace_parquet(trace, trace_path)
     wall = time.perf_counter() - t_wall0
+    phase_s = dict(zip(PHASES, ph))
+    phase_s["setup_and_rest"] = wall - sum(ph)
     log.info("simulate: SN %.4f (Ft %.4f N / Fn %.4f N), %d steps in %.1f s", ft / fn, ft, fn, n_total, wall)
     return SimulationResult(
         sn=ft / fn, tangential_n=ft, normal_n=fn, n_steps=n_total, dt_s=dt, wall_s=wall, energies=energies,
@@ -408,4 +464,4 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         preload_contact_area_mm2=preload_area * 1e6, max_penetration_um=max_pen * 1e6, n_elements=mesh.n_elements,
         omega_max_rad_s=omega, mean_contact_area_mm2=float(trace.loc[win, "contact_area_mm2"].mean()),
         meta=dict(config=config.as_dict(), y_offset_mm=float(y_offset_mm), omega_elastic_rad_s=omega_el,
-                  slope_bound=float(slope_bound), element_size_m=(mesh.hx, mesh.hy, mesh.hz)))
+                  slope_bound=float(slope_bound), element_size_m=(mesh.hx, mesh.hy, mesh.hz), phase_s=phase_s))

@@ -53,6 +53,13 @@ def corner_slices(mesh: SliderMesh) -> list[tuple]:
 class StructuredKernel:
     """f_int = K u on a structured mesh of identical bricks, by slicing (see module docstring).
 
+    **Padded flat layout** (bit-identical to the 4-d slicing, 2-3x faster gather and scatter): element
+    ``(k, j, i)`` gets the column ``(k (ny+1) + j) (nx+1) + i``, its node 0's flat node index. Corner ``c`` of
+    every element is then node ``column + o_c`` with one constant offset ``o_c``, so the 8 gathers and the 8
+    scatter-adds are contiguous 1-d slabs of each component (no 4-d strided iteration). The columns with
+    ``j = ny`` or ``i = nx`` are dummy elements (5.7 % extra columns on the 0.5 mm slider): their gathered
+    displacements are zeroed, so they carry zero force and energy.
+
     Parameters
     ----------
     mesh: the slider mesh.
@@ -68,54 +75,82 @@ class StructuredKernel:
         self.k = np.ascontiguousarray(k_elastic, dtype=float)
         nx, ny, nz = mesh.nx, mesh.ny, mesh.nz
         self.slices = corner_slices(mesh)
-        self.ue = np.empty((24, nz, ny, nx))
-        self.fe = np.empty((24, nx * ny * nz))
+        sy, sz = nx + 1, (nx + 1) * (ny + 1)
+        self.offsets = [dk * sz + dj * sy + di for di, dj, dk in HEX_CORNERS]
+        self.n_nodes = (nz + 1) * sz
+        self.n_cols = nz * sz                             # padded element columns (real + dummy)
+        # slab length: up to the last real element (the slab of the farthest corner then ends at the last node)
+        self.n_slab = (nz - 1) * sz + (ny - 1) * sy + nx
+        self.ue = np.zeros((24, self.n_cols))
+        self._ue4 = self.ue.reshape(24, nz, ny + 1, nx + 1)
+        self.fe = np.empty((24, self.n_cols))
         self.g = np.asarray(branch_g_pa, dtype=float)
         self.tau = np.asarray(branch_tau_s, dtype=float)
         self.k_dev = None if k_dev_unit is None else np.ascontiguousarray(k_dev_unit, dtype=float)
-        self.a = [np.zeros((24, nx * ny * nz)) for _ in self.g]  # relaxed element displacements per term
-        self._tmp = np.empty((24, nx * ny * nz)) if len(self.g) else None
-        self._ftmp = np.empty((24, nx * ny * nz)) if len(self.g) else None
+        self.a = [np.zeros((24, self.n_cols)) for _ in self.g]  # relaxed element displacements per term
+        self._tmp = np.empty((24, self.n_cols)) if len(self.g) else None
+        self._ftmp = np.empty((24, self.n_cols)) if len(self.g) else None
+        self._k_neg = None
         self.branch_energy = np.zeros(len(self.g))  # J, stored in each Maxwell branch at the last call
         if len(self.g) and self.k_dev is None:
             raise ValueError("Prony terms need k_dev_unit")
 
     def gather(self, u: np.ndarray) -> np.ndarray:
-        """Element displacement array ``(24, n_elements)`` (a view of the kernel's buffer)."""
+        """Element displacement array ``(24, n_cols)`` in the padded layout (dummy columns 0; the kernel's buffer)."""
         ue = self.ue
-        for c, s in enumerate(self.slices):
-            ue[3 * c:3 * c + 3] = u[s]
-        return ue.reshape(24, -1)
+        uf = u.reshape(3, self.n_nodes)
+        n = self.n_slab
+        for c, o in enumerate(self.offsets):
+            ue[3 * c:3 * c + 3, :n] = uf[:, o:o + n]
+        ue4 = self._ue4
+        ue4[:, :, self.mesh.ny, :] = 0.0                 # dummy columns (j = ny, i = nx); the tail beyond n_slab
+        ue4[:, :, :, self.mesh.nx] = 0.0                 # is such a column and stays 0 from the allocation
+        return ue
 
     def scatter(self, fe: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Add element forces ``(24, n_elements)`` to the nodal array ``out`` (zeroed first)."""
-        nx, ny, nz = self.mesh.nx, self.mesh.ny, self.mesh.nz
-        f4 = fe.reshape(24, nz, ny, nx)
-        # corner 0 (offset 0, 0, 0) is assigned, not added: only the three far faces need zeroing first
-        out[:, nz] = 0.0
-        out[:, :nz, ny] = 0.0
-        out[:, :nz, :ny, nx] = 0.0
-        out[self.slices[0]] = f4[0:3]
+        """Add element forces ``(24, n_cols)`` (padded layout, dummies 0) to the nodal array ``out`` (zeroed first)."""
+        of = out.reshape(3, self.n_nodes)
+        n = self.n_slab
+        of[:, :n] = fe[0:3, :n]                           # corner 0 (offset 0) is assigned, the rest zeroed
+        of[:, n:] = 0.0
         for c in range(1, 8):
-            out[self.slices[c]] += f4[3 * c:3 * c + 3]
+            o = self.offsets[c]
+            of[:, o:o + n] += fe[3 * c:3 * c + 3, :n]
         return out
 
-    def force(self, u: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Internal nodal forces (N) of nodal displacements ``u`` (m), internal layout ``(3, nz+1, ny+1, nx+1)``."""
+    def real_columns(self, a: np.ndarray) -> np.ndarray:
+        """The real elements' columns of a padded ``(24, n_cols)`` array as ``(24, nz, ny, nx)``."""
+        nx, ny, nz = self.mesh.nx, self.mesh.ny, self.mesh.nz
+        return a.reshape(24, nz, ny + 1, nx + 1)[:, :, :ny, :nx]
+
+    def force(self, u: np.ndarray, out: np.ndarray, *, negate: bool = False) -> np.ndarray:
+        """Internal nodal forces (N) of nodal displacements ``u`` (m), internal layout ``(3, nz+1, ny+1, nx+1)``.
+
+        ``negate=True`` returns ``-f_int`` (the force the elements exert on the nodes) bit for bit, at no extra
+        cost: the negated matrices are used (IEEE rounding is sign-symmetric), which saves the solver a full
+        array pass per step.
+        """
+        if not (out.flags.c_contiguous and u.flags.c_contiguous):
+            raise ValueError("StructuredKernel.force: u and out must be C-contiguous (3, nz+1, ny+1, nx+1) arrays")
         ue = self.gather(u)
-        np.matmul(self.k, ue, out=self.fe)
+        if negate:
+            if self._k_neg is None:
+                self._k_neg = -self.k
+            np.matmul(self._k_neg, ue, out=self.fe)
+        else:
+            np.matmul(self.k, ue, out=self.fe)
         if len(self.g):
             for i, gi in enumerate(self.g):
                 np.subtract(ue, self.a[i], out=self._tmp)
                 np.matmul(self.k_dev, self._tmp, out=self._ftmp)
                 self.branch_energy[i] = 0.5 * gi * float(np.vdot(self._tmp, self._ftmp))
-                self._ftmp *= gi
+                self._ftmp *= -gi if negate else gi
                 self.fe += self._ftmp
         return self.scatter(self.fe, out)
 
     def strain_energy(self) -> float:
         """Stored energy (J) at the displacements of the last :meth:`force` call: ``U.K_inf.U/2 + sum_i E_i``."""
-        ue = self.ue.reshape(24, -1)
+        ue = self.ue
         fe = np.matmul(self.k, ue)
         return 0.5 * float(np.vdot(ue, fe)) + float(self.branch_energy.sum())
 
@@ -128,7 +163,7 @@ class StructuredKernel:
         """
         if not len(self.g):
             return 0.0
-        ue = self.ue.reshape(24, -1)
+        ue = self.ue
         diss = 0.0
         for i, tau in enumerate(self.tau):
             beta = -np.expm1(-dt_s / tau)

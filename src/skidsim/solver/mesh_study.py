@@ -26,7 +26,11 @@ def mesh_study(pavement, sizes_mm: Sequence[float], speeds_kmh: Sequence[float],
     """One simulation per (speed, element size); returns the table with ``error_pct`` against the finest mesh.
 
     Columns: speed_kmh, element_mm, sn, wall_s (s), n_steps, n_elements, dt_s (s), element_steps_per_s, slide_mm,
-    energy_residual_frac, mean_contact_area_mm2, max_penetration_um, mu_at_speed, sn_finest, error_pct (%).
+    energy_residual_frac, mean_contact_area_mm2, max_penetration_um, mu_at_speed, sn_friction and sn_geometric
+    (SN split into the friction forces' and the contact-normal forces' x parts over the mean normal force; they
+    add up to sn), mean_normal_n (N, window mean of the vertical pavement force), mean_contact_nodes (bottom
+    nodes in contact), stick_fraction (share of the contact nodes held by the stick limit), sn_finest,
+    error_pct (%).
     ``base``: the other solver settings (default: the reference preset); only ``element_mm`` varies.
     """
     base = base or SolverConfig.reference()
@@ -34,11 +38,18 @@ def mesh_study(pavement, sizes_mm: Sequence[float], speeds_kmh: Sequence[float],
     for v in speeds_kmh:
         for h in sorted(sizes_mm, reverse=True):
             r = simulate(pavement, float(v), law, replace(base, element_mm=float(h)))
+            tr = r.trace
+            w = tr[(tr["position_mm"] >= r.window_mm[0]) & (tr["position_mm"] <= r.window_mm[1])]
+            fn = float(w["normal_n"].mean())
+            nodes = float(w["contact_nodes"].mean())
             rows.append(dict(speed_kmh=float(v), element_mm=float(h), sn=r.sn, wall_s=r.wall_s, n_steps=r.n_steps,
                              n_elements=r.n_elements, dt_s=r.dt_s, element_steps_per_s=r.element_steps_per_s,
                              slide_mm=r.slide_length_mm, energy_residual_frac=r.energy_residual_fraction(),
                              mean_contact_area_mm2=r.mean_contact_area_mm2, max_penetration_um=r.max_penetration_um,
-                             mu_at_speed=float(law.mu_kmh(v))))
+                             mu_at_speed=float(law.mu_kmh(v)), sn_friction=float(w["friction_x_n"].mean()) / fn,
+                             sn_geometric=float((w["tangential_n"] - w["friction_x_n"]).mean()) / fn,
+                             mean_normal_n=fn, mean_contact_nodes=nodes,
+                             stick_fraction=float(w["stick_nodes"].mean()) / nodes if nodes > 0 else 0.0))
             if log is not None:
                 log.info("%5.0f km/h %5.2f mm: SN %.4f, %.1f s, %d steps", v, h, r.sn, r.wall_s, r.n_steps)
     t = pd.DataFrame(rows)

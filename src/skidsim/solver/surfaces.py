@@ -147,3 +147,48 @@ def to_heightfield(surface, spacing_m: float = 0.1e-3, name: str = ""):
     z, _, _ = surface.evaluate(X.ravel(), Y.ravel())
     return Heightfield(np.asarray(z).reshape(X.shape), spacing_m, spacing_m, origin_m=(x0, y0),
                        name=name or type(surface).__name__)
+
+
+#: Monomial -> Bernstein coefficients of a cubic on [0, 1]: ``b_i = sum_{j <= i} C(i, j) / C(3, j) a_j``.
+_MONO_TO_BERNSTEIN = np.array([[1.0, 0.0, 0.0, 0.0],
+                               [1.0, 1.0 / 3.0, 0.0, 0.0],
+                               [1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0],
+                               [1.0, 1.0, 1.0, 1.0]])
+
+
+class SurfaceBound:
+    """Per-cell upper bound of a :class:`skidsim.reconstruct.Heightfield`'s C1 (bicubic) surface: contact candidates.
+
+    The bicubic of each cell is converted to the Bernstein basis; by the convex-hull property its largest Bernstein
+    coefficient bounds the surface over the cell from above. A bottom node whose height is not below the bound of
+    its cell (plus ``margin_m``, 1 nm against rounding) cannot penetrate, so the solver evaluates the surface and
+    the contact/friction forces only on the remaining candidates: the same result as evaluating every node (the
+    others get zero force), at a fraction of the cost (typically 1-20 % of the bottom nodes are candidates).
+    """
+
+    def __init__(self, heightfield, margin_m: float = 1e-9):
+        coef_t, lo, inv, hi, nxc = heightfield._cells
+        c = coef_t.reshape(4, 4, -1)  # [u power, t power, cell]
+        b = np.einsum("ib,ja,bac->ijc", _MONO_TO_BERNSTEIN, _MONO_TO_BERNSTEIN, c, optimize=True)
+        self.zmax_m = b.reshape(16, -1).max(axis=0) + margin_m
+        self._lo, self._inv, self._hi, self._nxc = lo[:, 0], inv[:, 0], hi[:, 0], nxc
+
+    @classmethod
+    def of(cls, pavement):
+        """The bound of a Heightfield-like pavement (with the bicubic ``_cells``), else ``None`` (no pruning)."""
+        return cls(pavement) if hasattr(pavement, "_cells") and hasattr(pavement, "z_m") else None
+
+    def cells(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
+        """Padded cell index of points (m), computed exactly as ``Heightfield.evaluate`` does."""
+        sx = (x_m - self._lo[0]) * self._inv[0]
+        sy = (y_m - self._lo[1]) * self._inv[1]
+        np.clip(sx, 0.0, self._hi[0], out=sx)
+        np.clip(sy, 0.0, self._hi[1], out=sy)
+        cell = sy.astype(np.intp)
+        cell *= self._nxc
+        cell += sx.astype(np.intp)
+        return cell
+
+    def candidates(self, x_m: np.ndarray, y_m: np.ndarray, z_m: np.ndarray) -> np.ndarray:
+        """Indices of the points ``(x_m, y_m, z_m)`` (m, 1-D) below the surface bound of their cell."""
+        return np.flatnonzero(z_m < self.zmax_m.take(self.cells(x_m, y_m)))
