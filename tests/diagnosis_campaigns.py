@@ -41,6 +41,15 @@ def _wlf(t_c, tr_c=WLF_TR_C, c1=8.86, c2=101.6):
 def make_campaign(seed: int, effect: str | None = None, *, n_sections: int = 12, sites_per_section: int = 3,
                   noise_mu: float = 0.005, trace_step_kmh: float = 4.0):
     """Return (tables, truth). tables: sites, measured, simulated, predicted, texture (what the analysis sees)."""
+    sites, measured, tex, truth = generate_campaign(seed, effect, n_sections=n_sections,
+                                                    sites_per_section=sites_per_section, noise_mu=noise_mu,
+                                                    trace_step_kmh=trace_step_kmh)
+    return derive_tables(sites, measured, tex), truth
+
+
+def generate_campaign(seed: int, effect: str | None = None, *, n_sections: int = 12, sites_per_section: int = 3,
+                      noise_mu: float = 0.005, trace_step_kmh: float = 4.0):
+    """Return (sites, measured, texture, truth): the campaign's raw data (measured: site, speed_kmh, mu, kind)."""
     if effect not in EFFECTS:
         raise ValueError(effect)
     rng = np.random.default_rng(seed)
@@ -73,7 +82,7 @@ def make_campaign(seed: int, effect: str | None = None, *, n_sections: int = 12,
     sites = pd.DataFrame({"site": site, "section": section, "temperature_c": np.round(temperature, 2),
                           "mix": mix, "test_order": order, "operator": rng.choice(["JD", "KL"], size=n),
                           "scan": [f"scans/{s}.x3p" for s in site], "dft": [f"dft/{s}.csv" for s in site]})
-    g = 1.0 + 0.03 * rng.normal(size=n)
+    rng.normal(size=n)  # (was the FE geometric factor g, which cancels in SN_sim = g mu_cal; keeps the stream)
     mu_k = 0.30 + 0.04 * micro + 0.012 * rng.normal(size=n)
     mu_s = mu_k + 0.30 + 0.04 * micro + 0.015 * rng.normal(size=n)
     alpha = 0.10 * np.exp(0.10 * rng.normal(size=n))
@@ -105,6 +114,22 @@ def make_campaign(seed: int, effect: str | None = None, *, n_sections: int = 12,
             y = truth_mu(i, vs) + sd * rng.normal(size=len(vs))
             rows += [(site[i], float(v), float(m), kind) for v, m in zip(vs, y)]
     measured = pd.DataFrame(rows, columns=["site", "speed_kmh", "mu", "kind"])
+    truth = {"effect": effect, "variable": {None: None, "temperature": "temperature_c", "drainage": "mpd_mm",
+                                            "wear": "test_order", "mix": "mix"}[effect]}
+    return sites, measured, tex, truth
+
+
+def derive_tables(sites: pd.DataFrame, measured: pd.DataFrame, tex: pd.DataFrame) -> dict:
+    """The diagnosis inputs derived from a campaign's raw data, by the cheap path (no FE): per-site calibration
+    of the exponential law through the calibration speeds (scipy curve_fit; the FE geometric factor g cancels in
+    SN_sim = g mu_cal, so the simulated curve is the fitted law) and leave-one-section-out texture predictions."""
+    site = sites["site"].astype(str).tolist()
+    n = len(site)
+    sec_codes = pd.factorize(sites["section"].astype(str))[0]
+    n_sections = int(sec_codes.max()) + 1
+    sec_idx = sec_codes
+    tex = tex.set_index(tex["site"].astype(str)).loc[site].reset_index(drop=True)
+    g = np.ones(n)
     # calibration: SN_sim = g mu_cal through 20/40/60 (independent fit: scipy curve_fit)
     cal = np.empty((n, 3))
     for i in range(n):
@@ -138,7 +163,55 @@ def make_campaign(seed: int, effect: str | None = None, *, n_sections: int = 12,
         pred[te] = (np.c_[np.ones(te.sum()), Z[te]] @ beta)[:, None] * shape[None, :]
     predicted = pd.DataFrame([(site[i], float(v), float(pred[i, j])) for i in range(n)
                               for j, v in enumerate(SIM_SPEEDS_KMH)], columns=["site", "speed_kmh", "sn_pred"])
-    tables = {"sites": sites, "measured": measured, "simulated": simulated, "predicted": predicted, "texture": tex}
-    truth = {"effect": effect, "variable": {None: None, "temperature": "temperature_c", "drainage": "mpd_mm",
-                                            "wear": "test_order", "mix": "mix"}[effect]}
-    return tables, truth
+    return {"sites": sites, "measured": measured, "simulated": simulated, "predicted": predicted, "texture": tex}
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# the campaign on disk: what a user provides (sites.csv, one DFT trace per site) plus the texture table derived
+# from the scans; the truth is returned to the caller and never written there
+# ---------------------------------------------------------------------------------------------------------------
+
+TEXTURE_FILE = "texture.csv"
+
+
+def write_campaign(directory, seed: int, effect: str | None = None, **kw) -> dict:
+    """Write a campaign directory: sites.csv (skidsim.synthetic.write_sites_csv: site, section, scan, dft,
+    temperature_c, metadata), dft/<site>.csv (one spin-down trace per site, columns speed_kmh, mu: the union of
+    the noisy samples, equal speeds averaged) and texture.csv (the texture parameters per site). Returns truth."""
+    from pathlib import Path
+
+    from skidsim.synthetic import write_sites_csv
+
+    d = Path(directory)
+    (d / "dft").mkdir(parents=True, exist_ok=True)
+    sites, measured, tex, truth = generate_campaign(seed, effect, **kw)
+    write_sites_csv(sites.drop(columns=["scan", "dft"]), d, d / "sites.csv")
+    for s, m in measured.groupby("site"):
+        m = m.groupby("speed_kmh", as_index=False)["mu"].mean().sort_values("speed_kmh", ascending=False)
+        lines = ["speed_kmh,mu"] + [f"{v:.10g},{mu:.10g}" for v, mu in zip(m["speed_kmh"], m["mu"])]
+        (d / "dft" / f"{s}.csv").write_text("\n".join(lines) + "\n")
+    tex.to_csv(d / TEXTURE_FILE, index=False)
+    return truth
+
+
+def read_campaign(directory) -> dict:
+    """The diagnosis tables from a campaign directory only: sites.csv, the DFT files it names (skidsim.dft.read_dft)
+    and texture.csv. DFT points at the calibration and validation speeds are the trace interpolated there (the
+    trace holds samples at those speeds); every trace sample within 20-80 km/h is a 'trace' point."""
+    from pathlib import Path
+
+    from skidsim.dft import read_dft
+
+    d = Path(directory)
+    sites = pd.read_csv(d / "sites.csv")
+    rows = []
+    for r in sites.itertuples():
+        tr = read_dft(d / r.dft)
+        v, mu = tr.speeds_kmh, tr.mu
+        for kind, speeds in (("calibration", SPEEDS_CAL_KMH), ("validation", SPEEDS_VAL_KMH)):
+            rows += [(str(r.site), float(x), float(np.interp(x, v, mu)), kind) for x in speeds]
+        keep = (v >= 20.0 - 1e-9) & (v <= 80.0 + 1e-9)
+        rows += [(str(r.site), float(x), float(y), "trace") for x, y in zip(v[keep], mu[keep])]
+    measured = pd.DataFrame(rows, columns=["site", "speed_kmh", "mu", "kind"])
+    tex = pd.read_csv(d / TEXTURE_FILE)
+    return derive_tables(sites, measured, tex)

@@ -14,9 +14,13 @@ level only) and interacting with speed (``"x_speed"``: a free speed profile time
 ``"functional_form"`` of mu(v) (a residual shape shared by all sites) at each level. For each: the statistic
 (sum of squares of the residual explained by the candidate), its permutation p-value (whole sites permuted; whole
 sections, among sections of equal size, for covariates constant within sections; random sign flips of whole site
-profiles for the functional form), Benjamini-Hochberg (or Benjamini-Yekutieli) adjusted p-values across all
-candidates of all levels, and the cross-validated gain (leave-one-section-out) of adding the candidate to a residual
-model. See ``docs/model-criticism.md`` for every convention. Units: speeds km/h, residuals in friction
+profiles for the functional form), false-discovery control over *testing units* in two families, and the
+cross-validated gain (leave-one-section-out) of adding the candidate to a residual model. Units: correlated
+texture parameters (complete-linkage clusters, every pair |Spearman rho| >= ``cluster_rho``) are one unit per
+level and kind, tested by the max-statistic over their members under the same permutations; every other candidate
+is its own unit. Families: *primary* (functional form; temperature columns between sites; MPD x speed) and
+*secondary* (the rest), each with Benjamini-Hochberg (or -Yekutieli) at its share of ``fdr``; FDR being
+subadditive over a partition, the FDR over units is <= ``fdr``. See ``docs/model-criticism.md`` for every convention. Units: speeds km/h, residuals in friction
 units (mu, dimensionless), temperatures deg C, MPD mm.
 
 The analysis reads only campaign-level tables (never a truth file).
@@ -148,7 +152,11 @@ class Cause:
     ``cv_msr``: cross-validated reduction of the mean squared residual per (site, speed bin) cell, mu^2 (a level
     term acts on every bin of a site), used to rank significant causes: comparable across kinds and levels;
     ``z``: (T - mean T_perm) / sd T_perm (standardised statistic); ``group``: numeric candidates with
-    |Pearson r| >= corr_group across sites (itself included); ``significant``: p_adjusted <= fdr and cv_gain > 0.
+    |Pearson r| >= corr_group across sites (itself included), or for texture parameters the members of its
+    texture cluster; ``significant``: p_adjusted <= fdr and cv_gain > 0. ``family``: "primary" (functional form
+    and the physical hypotheses: temperature, MPD x speed) or "secondary" (every other candidate); ``unit``: the
+    tested unit (the variable itself, or ``cluster:<representative>`` for a texture cluster tested by its
+    max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster).
     """
 
     variable: str
@@ -169,6 +177,9 @@ class Cause:
     section_level: bool = False
     n_sites: int = 0
     n_permutations: int = 0
+    family: str = ""
+    unit: str = ""
+    unit_p: float = float("nan")
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -357,6 +368,44 @@ def adjust_pvalues(p, method: str = "bh") -> np.ndarray:
     return out
 
 
+def temperature_columns(cov: pd.DataFrame, info: dict) -> list[str]:
+    """Numeric sites.csv columns whose name contains 'temp' (deg C): the temperature hypotheses (primary family)."""
+    return [c for c in cov.columns if info[c] == ("sites", "numeric") and "temp" in str(c).lower()]
+
+
+def find_mpd_column(cov: pd.DataFrame, info: dict | None = None) -> str | None:
+    """The mean profile depth column (mm): a numeric column named like MPD (``mpd``, ``mpd_mm``, ``profile_MPD``,
+    case-insensitive); companion statistics (``*_sd``, ``*_n_*``, ``*segments*``) are not MPD. None if absent."""
+    def ok(c):
+        lc = str(c).lower()
+        return "mpd" in lc and not lc.endswith("_sd") and "_n_" not in lc and "segment" not in lc
+    names = [c for c in cov.columns if ok(c) and (info is None or info[c][1] == "numeric")]
+    if not names:
+        return None
+    exact = [c for c in names if str(c).lower() in ("mpd", "mpd_mm", "profile_mpd", "profile_mpd_mm")]
+    return str((exact or sorted(names, key=len))[0])
+
+
+def texture_clusters(cov: pd.DataFrame, info: dict, rho: float = 0.8) -> list[list[str]]:
+    """Clusters of the numeric texture columns: complete-linkage hierarchical clustering on 1 - |Spearman rho|
+    across sites, cut at 1 - ``rho``: every pair of members of a cluster has |rho| >= ``rho``. Deterministic:
+    clusters ordered by their first member in column order."""
+    tex = [c for c in cov.columns if info[c][0] == "texture" and info[c][1] == "numeric"]
+    if len(tex) < 2:
+        return [[c] for c in tex]
+    from scipy.cluster.hierarchy import fcluster, linkage
+    from scipy.spatial.distance import squareform
+    r = cov[tex].rank().corr().abs().to_numpy()
+    r = np.nan_to_num(r, nan=0.0)
+    d = np.clip(1.0 - r, 0.0, None)
+    np.fill_diagonal(d, 0.0)
+    lab = fcluster(linkage(squareform((d + d.T) / 2, checks=False), "complete"), 1.0 - rho, "distance")
+    out = {}
+    for c, l in zip(tex, lab):
+        out.setdefault(l, []).append(c)
+    return list(out.values())
+
+
 def auto_permutations(n_candidates: int, fdr: float) -> int:
     """Default permutation count: with m candidates, BH can only declare a cause if its p-value <= fdr/m, and the
     smallest permutation p-value is 1/(P+1); we use P = max(999, ceil(4 m / fdr) - 1)."""
@@ -366,14 +415,25 @@ def auto_permutations(n_candidates: int, fdr: float) -> int:
 def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *,
                       n_permutations: int | None = None, seed: int = 0, fdr: float = 0.05,
                       corr_group: float = 0.9, speed_bin_kmh: float = 10.0, fdr_method: str = "bh",
-                      min_cv_gain: float = 0.0, exclude=DEFAULT_EXCLUDE) -> list[Cause]:
+                      min_cv_gain: float = 0.0, exclude=DEFAULT_EXCLUDE, cluster_rho: float = 0.8,
+                      primary_share: float = 0.5, temperature_column: str | None = None,
+                      mpd_column: str | None = None) -> list[Cause]:
     """Screen every candidate cause at every level; returns causes ranked by evidence.
 
     Ranking: significant causes first (statistical evidence decides whether a cause is named), among them by
     ``cv_msr`` (cross-validated explained residual mean square, mu^2: predictive evidence); section identity
     goes below a significant coarser section-level grouping of the same level and kind (parsimony); the rest by
-    ``p_adjusted`` and ``z``. ``n_permutations=None`` uses :func:`auto_permutations`. Residuals are averaged per
-    site and speed bin (``speed_bin_kmh``); only bins observed at every site of a level are used.
+    ``p_adjusted`` and ``z``. ``n_permutations=None`` uses :func:`auto_permutations` for the larger family size
+    divided by its share of ``fdr``. Residuals are averaged per site and speed bin (``speed_bin_kmh``); only bins
+    observed at every site of a level are used.
+
+    Multiple testing (docs/model-criticism.md, section 2): texture columns are clustered
+    (:func:`texture_clusters`, ``cluster_rho``) and a cluster is tested per level and kind by its max-statistic;
+    the primary family (functional form, temperature columns between sites -- :func:`temperature_columns` or
+    ``temperature_column`` --, MPD x speed -- :func:`find_mpd_column` or ``mpd_column``) gets BH at
+    ``primary_share * fdr``, the secondary family (everything else) at ``(1 - primary_share) * fdr``.
+    ``p_adjusted`` is on the fdr scale (family-adjusted unit p / share; for a cluster member at least its
+    within-cluster single-step maxT p).
     """
     _require(residuals, ("site", "level", "speed_kmh", "residual"), "residuals")
     if not 0 < fdr < 1:
@@ -391,14 +451,34 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         level_data[level] = (site_ids, bins, R)
     if not level_data:
         raise InputError("residuals", "at least 4 sites with residuals at one level")
-    n_tests = sum(len(cov.columns) * (1 if lv == "within-site" else 2) + 1 for lv in level_data)
+    if not 0 < primary_share < 1:
+        raise ConfigError(f"primary_share must be in (0, 1), got {primary_share}")
+    temp_cols = temperature_columns(cov, info) if temperature_column is None else [temperature_column]
+    mpd_col = find_mpd_column(cov, info) if mpd_column is None else mpd_column
+    for c, what in ((temperature_column, "temperature_column"), (mpd_column, "mpd_column")):
+        if c is not None and c not in cov.columns:
+            raise InputError("sites table / texture table", f"the {what} '{c}' as a numeric column", column=c)
+    clusters = texture_clusters(cov, info, cluster_rho)
+    kinds_per_level = {lv: (("x_speed",) if lv == "within-site" else ("main", "x_speed")) for lv in level_data}
+    m_fam = {"primary": 0, "secondary": 0}
+    for lv, kinds in kinds_per_level.items():
+        m_fam["primary"] += 1  # functional form
+        for kind in kinds:
+            n_temp = len(temp_cols) if lv == "between-site" else 0
+            m_fam["primary"] += n_temp + (1 if (mpd_col is not None and kind == "x_speed") else 0)
+            meta = [c for c in cov.columns if info[c][0] != "texture"]
+            m_fam["secondary"] += len(meta) - n_temp + len(clusters)
+    share = {"primary": primary_share, "secondary": 1.0 - primary_share}
+    m_eff = max(m_fam[f] / share[f] for f in m_fam if m_fam[f] > 0)
+    n_tests = int(math.ceil(m_eff))
     P = auto_permutations(n_tests, fdr) if n_permutations is None else int(n_permutations)
     if P < 1:
         raise ConfigError(f"n_permutations must be >= 1, got {P}")
     if (P + 1) * fdr < n_tests:
-        warnings.warn(f"n_permutations={P} with {n_tests} candidates: the smallest permutation p-value 1/{P + 1} "
-                      f"exceeds fdr/m = {fdr / n_tests:.2g}, so a single cause can never be significant; use "
-                      f"n_permutations=None (auto: {auto_permutations(n_tests, fdr)})", RuntimeWarning, stacklevel=2)
+        warnings.warn(f"n_permutations={P} with {n_tests} effective units: the smallest permutation p-value "
+                      f"1/{P + 1} exceeds share * fdr / m = {fdr / n_tests:.2g}, so a single cause can never be "
+                      f"significant; use n_permutations=None (auto: {auto_permutations(n_tests, fdr)})",
+                      RuntimeWarning, stacklevel=2)
     for level, (site_ids, bins, R) in level_data.items():
         missing = [s for s in site_ids if s not in cov.index]
         if missing:
@@ -453,9 +533,48 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         tests.append(dict(variable="functional_form", level=level, kind="functional_form", T=Tff, Tp=Tffp,
                           sse0=sse0, sse1=sse1, n=n, S=S, direction=0, source="residual", dtype="",
                           section_level=False))
-    # p-values, FDR, groups
+    # p-values; testing units (single candidates, or texture clusters tested by their max-statistic) in two
+    # families, each with its own step-up FDR procedure at its share of fdr (FDR is subadditive over a partition
+    # of the hypotheses, so the overall FDR over units is <= fdr); see docs/model-criticism.md
     pvals = np.array([(1 + np.sum(t["Tp"] >= t["T"] * (1 - 1e-12))) / (P + 1) for t in tests])
-    padj = adjust_pvalues(pvals, fdr_method)
+    cluster_of = {c: k for k, members in enumerate(clusters) for c in members}
+    units = {}  # key -> dict(family, name, members=[test index])
+    for j, t in enumerate(tests):
+        v = t["variable"]
+        if t["kind"] == "functional_form" or (v in temp_cols and t["level"] == "between-site") or \
+                (v == mpd_col and t["kind"] == "x_speed"):
+            key, fam, name = ("single", j), "primary", v
+        elif v in cluster_of and len(clusters[cluster_of[v]]) > 1:
+            key, fam, name = ("cluster", t["level"], t["kind"], cluster_of[v]), "secondary", None
+        else:
+            key, fam, name = ("single", j), "secondary", v
+        units.setdefault(key, dict(family=fam, name=name, members=[]))["members"].append(j)
+    unit_p, wy_p = {}, np.ones(len(tests))
+    for key, u in units.items():
+        mem = u["members"]
+        if len(mem) == 1:
+            unit_p[key] = pvals[mem[0]]
+            wy_p[mem[0]] = pvals[mem[0]]
+            continue
+        Tmax_perm = np.max(np.stack([tests[j]["Tp"] for j in mem]), axis=0)
+        Tobs = np.array([tests[j]["T"] for j in mem])
+        rep = mem[int(np.argmax(Tobs))]
+        u["name"] = f"cluster:{tests[rep]['variable']}"
+        unit_p[key] = (1 + np.sum(Tmax_perm >= Tobs.max() * (1 - 1e-12))) / (P + 1)
+        for j, tj in zip(mem, Tobs):  # single-step maxT (Westfall & Young 1993) within the cluster
+            wy_p[j] = (1 + np.sum(Tmax_perm >= tj * (1 - 1e-12))) / (P + 1)
+    unit_adj = {}
+    for fam in ("primary", "secondary"):
+        keys = [k for k, u in units.items() if u["family"] == fam]
+        if keys:
+            a = adjust_pvalues(np.array([unit_p[k] for k in keys]), fdr_method) / share[fam]
+            unit_adj.update({k: float(min(x, 1.0)) for k, x in zip(keys, a)})
+    padj = np.ones(len(tests))
+    unit_of = np.empty(len(tests), dtype=object)
+    for key, u in units.items():
+        for j in u["members"]:
+            padj[j] = max(unit_adj[key], wy_p[j])
+            unit_of[j] = key
     # hierarchical (gatekeeper) step, Yekutieli (2008): where section identity is significant at a level and kind,
     # the section-level covariates of that level and kind (coarser groupings such as mix, section-constant
     # numbers) are the candidate explanations of the section effect and form a child family adjusted on its own.
@@ -472,21 +591,25 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     num = [c for c in cov.columns if info[c][1] == "numeric"]
     corr = cov[num].corr().abs() if num else pd.DataFrame()
     causes = []
-    for t, p, pa in zip(tests, pvals, padj):
+    for j, (t, p, pa) in enumerate(zip(tests, pvals, padj)):
         sd = float(np.std(t["Tp"]))
         z = (t["T"] - float(np.mean(t["Tp"]))) / sd if sd > 0 else 0.0
         cvg = 1.0 - t["sse1"] / t["sse0"] if t["sse0"] > 0 else 0.0
         grp = ()
-        if t["variable"] in corr.columns:
+        if t["variable"] in cluster_of and len(clusters[cluster_of[t["variable"]]]) > 1:
+            grp = tuple(sorted(clusters[cluster_of[t["variable"]]]))
+        elif t["variable"] in corr.columns:
             row = corr[t["variable"]]
             grp = tuple(sorted(row.index[row >= corr_group]))
+        u = units[unit_of[j]]
         causes.append(Cause(variable=t["variable"], level=t["level"], kind=t["kind"],
                             effect=float(math.sqrt(max(t["T"], 0.0) / (t["n"] * t["S"]))), cv_gain=float(cvg),
                             p_value=float(p), p_adjusted=float(pa),
                             significant=bool(pa <= fdr and cvg > min_cv_gain), group=grp,
                             cv_msr=float((t["sse0"] - t["sse1"]) / (t["n"] * t["S"])), statistic=float(t["T"]),
                             z=float(z), direction=t["direction"], source=t["source"], dtype=t["dtype"],
-                            section_level=t["section_level"], n_sites=t["n"], n_permutations=P))
+                            section_level=t["section_level"], n_sites=t["n"], n_permutations=P,
+                            family=u["family"], unit=u["name"], unit_p=float(unit_p[unit_of[j]])))
     causes.sort(key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     # parsimony: section identity ranks below a significant coarser section-level grouping (e.g. mix) of the
     # same level and kind, whose evidence it contains
@@ -531,13 +654,6 @@ class ExtendedModel:
     fe_hook: ViscoelasticFE | None = None
 
 
-def _find_mpd_column(cov: pd.DataFrame) -> str | None:
-    for c in cov.columns:
-        if "mpd" in str(c).lower():
-            return str(c)
-    return None
-
-
 def apply_extension(cause: Cause, sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *,
                     speed_bin_kmh: float = 10.0) -> ExtendedModel:
     """Choose the extension for a named cause.
@@ -555,7 +671,7 @@ def apply_extension(cause: Cause, sites: pd.DataFrame, texture_wide: pd.DataFram
     name = cause.variable.lower()
     if "temp" in name and cause.dtype == "numeric":
         return ExtendedModel(cause, TemperatureShift(column=cause.variable), generic)
-    mpd = _find_mpd_column(cov)
+    mpd = find_mpd_column(cov)
     if mpd is not None and cause.kind == "x_speed" and (
             cause.variable == mpd or mpd in cause.group or "macro" in name):
         return ExtendedModel(cause, DrainageIFI(mpd_column=mpd), generic, ViscoelasticFE())
@@ -626,10 +742,20 @@ def _site_mean(x: np.ndarray, i: np.ndarray, n_sites: int) -> np.ndarray:
 def _physical_params(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> tuple[list, list]:
     """Names and bounds of the fitted parameters of a physical extension in a scope."""
     if isinstance(ext, TemperatureShift):
-        return ["t_ref_c"], [ext.t_ref_bounds_c(_site_values(cov, ext.column, scope.sites))]
+        tb = ext.t_ref_bounds_c(_site_values(cov, ext.column, scope.sites))
+        if ext.fit_level:
+            return ["t_ref_c", "level_per_c"], [tb, ext.level_bounds_per_c]
+        return ["t_ref_c"], [tb]
     if isinstance(ext, DrainageIFI):
         return ["kappa"], [ext.kappa_bounds]
     raise ConfigError(f"not a physical extension: {type(ext).__name__}")
+
+
+def _training_offset(scope: _Scope, train: np.ndarray, after: np.ndarray) -> float:
+    """Campaign-wide level offset (mu) of an extended between-site prediction: the mean training residual
+    ``measured - after`` over the training sites' rows (closed-form least squares of a constant)."""
+    rtr = train[scope.row_site]
+    return float(np.mean(scope.rows["measured"].to_numpy(float)[rtr] - after[rtr]))
 
 
 def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, theta) -> np.ndarray:
@@ -641,7 +767,10 @@ def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, th
     prediction at the shifted speed; DrainageIFI multiplies by ``m_i(v) / mean_site(m_i)`` with
     ``m_i(v) = exp(-kappa v (1/Sp_i - mean_train 1/Sp))``: a pure shape correction that keeps each site's mean
     predicted level over its evaluated speeds (the texture model already carries the level, and the IFI anchor
-    speed then drops out).
+    speed then drops out). Between sites an extension that acts on the level (TemperatureShift) also refits the
+    campaign-wide level offset of the texture model (:func:`_training_offset`, the mean training residual after
+    the extension), as the generic level term does with its intercept b0; shape extensions (DrainageIFI, slope
+    terms) keep each site's level. gain.json ``over_shared_level`` separates that offset from the cause.
     """
     theta = np.atleast_1d(np.asarray(theta, dtype=float))
     v = scope.rows["speed_kmh"].to_numpy(float)
@@ -651,13 +780,17 @@ def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, th
     b0, c0, a0 = scope.base
     if isinstance(ext, TemperatureShift):
         T = _site_values(cov, ext.column, scope.sites)
-        k = ext.speed_factor(T, float(T[train].mean()), float(theta[0]))
+        anchor = float(T[train].mean())
+        k = ext.speed_factor(T, anchor, float(theta[0]))
+        bt = ext.vertical_factor(T, anchor, float(theta[1]) if len(theta) > 1 else None)
         if within:
             # refitting the law through the calibration points at effective speeds k v gives
             # f(k v; b, c, alpha / k) = f(v; b, c, alpha): the exponential family is closed under speed scaling,
-            # so a per-site calibration absorbs a temperature shift exactly and 'after' equals 'before'
+            # so a per-site calibration absorbs a temperature shift exactly and 'after' equals 'before' (the
+            # vertical factor b_T scales b and c and is absorbed likewise)
             return before.copy()
-        return before + exp_curve(v * k[i], b0[i], c0[i], a0[i]) - exp_curve(v, b0[i], c0[i], a0[i])
+        a = before + bt[i] * exp_curve(v * k[i], b0[i], c0[i], a0[i]) - exp_curve(v, b0[i], c0[i], a0[i])
+        return a + _training_offset(scope, train, a)
     if isinstance(ext, DrainageIFI):
         inv_sp = ext.inverse_speed_constant(_site_values(cov, ext.mpd_column, scope.sites))
         if within:
@@ -683,7 +816,7 @@ def recalibrate(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> dic
     if getattr(ext, "physical", False) and not isinstance(ext, ViscoelasticFE):
         names, bounds = _physical_params(ext, scope, cov, train)
         if isinstance(ext, TemperatureShift) and scope.name == "held_out_speeds":
-            return {"t_ref_c": float(ext.t_ref_c), "identifiable": False}
+            return {"t_ref_c": float(ext.t_ref_c), "level_per_c": float(ext.level_per_c), "identifiable": False}
 
         def obj(th):
             a = _after_physical(ext, scope, cov, train, th)
@@ -782,6 +915,20 @@ def cross_fit(ext, scope: _Scope, cov: pd.DataFrame) -> tuple[pd.DataFrame, list
     return scope.rows.assign(after=after), params
 
 
+def shared_level_reference(ext, scope: _Scope, cov: pd.DataFrame) -> np.ndarray:
+    """Cross-fitted reference 'before + shared offset' for every row of the scope: the mean training residual
+    (mu) of the same folds as the extension. Comparing an extension against it isolates what the named variable
+    adds beyond a campaign-wide level correction of the texture model (gain.json ``over_shared_level``)."""
+    folds = _ext_folds(ext, scope, cov)
+    before = scope.rows["before"].to_numpy(float)
+    resid = scope.rows["measured"].to_numpy(float) - before
+    out = np.full(len(before), np.nan)
+    for f in np.unique(folds):
+        tr = (folds != f)[scope.row_site]
+        out[~tr] = before[~tr] + resid[tr].mean()
+    return out
+
+
 # ----------------------------------------------------------------------------------------------------------------
 # gain
 # ----------------------------------------------------------------------------------------------------------------
@@ -873,6 +1020,13 @@ def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.
             rows, params = cross_fit(ext, sc, cov)
             scopes[sc.name] = measure_gain(rows, n_boot=n_boot, seed=seed, ci=ci)
             scopes[sc.name]["extension"] = _ext_describe(ext, params)
+            if sc.name == "held_out_sites":
+                ref = shared_level_reference(ext, sc, cov)
+                g2 = measure_gain(rows.assign(before=ref), n_boot=n_boot, seed=seed, ci=ci)
+                scopes[sc.name]["over_shared_level"] = {
+                    k: g2[k] for k in ("rmse_before", "rmse_before_ci", "rmse_after", "rmse_after_ci", "rmse_gain",
+                                       "rmse_gain_ci", "r2_before", "r2_before_ci", "r2_gain", "r2_gain_ci",
+                                       "gain_excludes_zero")}
             preds.append(rows.assign(scope=sc.name))
         results.append((ext, scopes, pd.concat(preds, ignore_index=True) if preds else pd.DataFrame()))
     best = results[0]
@@ -893,13 +1047,15 @@ def diagnose(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFram
              predicted: pd.DataFrame | None = None, texture_wide: pd.DataFrame | None = None, *,
              n_permutations: int | None = None, seed: int = 0, fdr: float = 0.05, corr_group: float = 0.9,
              speed_bin_kmh: float = 10.0, fdr_method: str = "bh", n_boot: int = 2000, ci: float = 0.95,
-             exclude=DEFAULT_EXCLUDE) -> DiagnosisResult:
+             exclude=DEFAULT_EXCLUDE, cluster_rho: float = 0.8, primary_share: float = 0.5,
+             temperature_column: str | None = None, mpd_column: str | None = None) -> DiagnosisResult:
     """The whole diagnosis on campaign-level tables: residuals, screening, extension for the named cause,
     cross-fitted gain. With no named cause, ``gain`` holds the baseline RMSE/R^2 (after = before)."""
     res = build_residuals(sites, measured, simulated, predicted)
     causes = screen_candidates(res, sites, texture_wide, n_permutations=n_permutations, seed=seed, fdr=fdr,
                                corr_group=corr_group, speed_bin_kmh=speed_bin_kmh, fdr_method=fdr_method,
-                               exclude=exclude)
+                               exclude=exclude, cluster_rho=cluster_rho, primary_share=primary_share,
+                               temperature_column=temperature_column, mpd_column=mpd_column)
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
     if top is not None:
@@ -948,6 +1104,14 @@ def _fmt_ci(d, key):
     return f"{d[key]:.4f} [{lo:.4f}, {hi:.4f}]"
 
 
+def _fmt_group(group, n_show: int = 6) -> str:
+    """A correlated group for report.md: up to ``n_show`` names and the count of the rest (causes.json has all)."""
+    g = list(group)
+    if len(g) <= 1:
+        return ""
+    return ", ".join(g[:n_show]) + (f" (+{len(g) - n_show} more)" if len(g) > n_show else "")
+
+
 def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, figures: dict | None = None,
                   *, top_n: int = 15) -> dict:
     """Write residuals.parquet, causes.json, gain.json and report.md to ``out_dir`` (each atomically).
@@ -973,7 +1137,7 @@ def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, fi
         lines += ["**No cause named**: no candidate is significant after false-discovery control "
                   "(and with positive cross-validated gain).", ""]
     else:
-        grp = ", ".join(top["group"]) if top["group"] else "-"
+        grp = _fmt_group(top["group"]) or "-"
         lines += [f"**Named cause: `{top['variable']}`** ({top['level']}, {top['kind']}); correlated group: {grp}; "
                   f"effect {top['effect']:.4f} mu, cv gain {top['cv_gain']:.3f}, p = {top['p_value']:.2g}, "
                   f"p_adj = {top['p_adjusted']:.2g}.", "",
@@ -986,13 +1150,19 @@ def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, fi
         lines.append(f"| {name} | {d['n_sites']} | {d['n_points']} | {_fmt_ci(d, 'rmse_before')} | "
                      f"{_fmt_ci(d, 'rmse_after')} | {_fmt_ci(d, 'rmse_gain')} | {_fmt_ci(d, 'r2_before')} | "
                      f"{_fmt_ci(d, 'r2_after')} |")
+    for name, d in gain.get("scopes", {}).items():
+        o = d.get("over_shared_level")
+        if o is not None and gain.get("extension"):
+            lines += ["", f"{name}: against a campaign-wide level offset of the texture model alone (RMSE "
+                          f"{o['rmse_before']:.4f}), the extension's RMSE gain is {_fmt_ci(o, 'rmse_gain')} "
+                          "(what the named variable itself adds)."]
     lines += ["", f"## Candidates (top {top_n} of {len(clist)}, ranked by evidence)", "",
               "| rank | variable | level | kind | effect (mu) | cv gain | p | p adj | significant | group |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for c in clist[:top_n]:
         lines.append(f"| {c['rank']} | {c['variable']} | {c['level']} | {c['kind']} | {c['effect']:.4f} | "
                      f"{c['cv_gain']:.3f} | {c['p_value']:.2g} | {c['p_adjusted']:.2g} | {c['significant']} | "
-                     f"{', '.join(c['group']) if len(c['group']) > 1 else ''} |")
+                     f"{_fmt_group(c['group'])} |")
     if figures:
         lines += ["", "## Figures", ""]
         for cap, fp in figures.items():

@@ -7,7 +7,7 @@ none needs the FE except :class:`ViscoelasticFE`, which is only a hook (a flag p
 See ``docs/model-criticism.md`` for the formulas, sources and conventions.
 
 * :class:`TemperatureShift` -- time-temperature superposition (Williams, Landel & Ferry 1955; Grosch 1963):
-  ``mu(v, T) = mu_ref(a_T v)``, ``log10 a_T = -C1 (T - T_r) / (C2 + T - T_r)`` with the universal constants
+  ``mu(v, T) = b_T mu_ref(a_T v)`` with a linearised vertical shift ``b_T = 1 + k_T (T - T_anchor)`` (Ferry 1980), ``log10 a_T = -C1 (T - T_r) / (C2 + T - T_r)`` with the universal constants
   ``C1 = 8.86``, ``C2 = 101.6 K``. The fitted parameter is the reference temperature ``T_r`` (deg C), which sets
   the sensitivity ``d log10 a_T / dT``. Temperatures are centred: a site at the anchor temperature (mean of the
   training sites) is unchanged, i.e. the effective slip speed is ``s * a_T(T_i) / a_T(T_anchor)``.
@@ -121,19 +121,32 @@ def fit_exp_curves(speed_kmh, y, *, alpha_bounds=(1e-4, 3.0), n_grid: int = 240)
 
 @dataclass(frozen=True)
 class TemperatureShift:
-    """WLF time-temperature shift of the slip speed: effective speed ``v a_T(T_i) / a_T(T_anchor)``.
+    """WLF time-temperature shift of the slip speed, effective speed ``v a_T(T_i) / a_T(T_anchor)``, and a vertical
+    (amplitude) shift ``b_T = 1 + level_per_c (T_i - T_anchor)``: ``mu(v, T) = b_T mu_ref(v a_T / a_T(T_anchor))``.
 
     ``c1`` (-), ``c2_k`` (K) are the universal WLF constants; ``t_ref_c`` (deg C) the reference temperature
-    (fitted by :func:`skidsim.diagnosis.recalibrate` within ``t_ref_bounds_c``); ``column`` the temperature
+    (fitted by :func:`skidsim.diagnosis.recalibrate` within ``t_ref_bounds_c``); ``level_per_c`` (1/K) the
+    vertical shift slope, fitted within ``level_bounds_per_c`` when ``fit_level`` (else held at its value; 0 =
+    the pure WLF speed shift); ``column`` the temperature
     column (deg C) of sites.csv. Source: Williams, Landel & Ferry (1955) J. Am. Chem. Soc. 77, 3701; Grosch (1963)
-    Proc. R. Soc. A 274, 21 (rubber friction master curves).
+    Proc. R. Soc. A 274, 21 (rubber friction master curves); Ferry (1980) Viscoelastic Properties of Polymers,
+    3rd ed., Wiley, ch. 11 (vertical shift factor b_T).
     """
 
     column: str = "temperature_c"
     c1: float = WLF_C1
     c2_k: float = WLF_C2_K
     t_ref_c: float = -30.0
+    level_per_c: float = 0.0
+    fit_level: bool = True
+    level_bounds_per_c: tuple[float, float] = (-0.05, 0.05)
     physical: bool = True
+
+    def vertical_factor(self, temperature_c, anchor_c: float, level_per_c: float | None = None):
+        """Vertical shift factor ``b_T = 1 + level_per_c (T - T_anchor)`` (dimensionless; level_per_c in 1/K),
+        the linearised amplitude shift of time-temperature superposition (Ferry 1980, ch. 11)."""
+        k = self.level_per_c if level_per_c is None else level_per_c
+        return 1.0 + k * (np.asarray(temperature_c, dtype=float) - float(anchor_c))
 
     def speed_factor(self, temperature_c, anchor_c: float, t_ref_c: float | None = None):
         """``a_T(T) / a_T(T_anchor)`` (dimensionless) for temperatures in deg C."""
