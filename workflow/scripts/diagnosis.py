@@ -50,7 +50,8 @@ log.info("diagnosis: %d measured points, %d sites, between-site predictions from
 result = diagnosis.diagnose(sites, measured, simulated, pred[["site", "speed_kmh", "sn_pred"]], wide,
                             n_permutations=cfg.get("n_permutations"), seed=cfg["seed"], fdr=cfg["fdr"],
                             corr_group=cfg["corr_group"], speed_bin_kmh=cfg["speed_bin_kmh"],
-                            fdr_method=cfg["fdr_method"], n_boot=cfg["n_boot"], ci=cfg["ci"])
+                            fdr_method=cfg["fdr_method"], n_boot=cfg["n_boot"], ci=cfg["ci"],
+                            cluster_rho=cfg["cluster_rho"], primary_share=cfg["primary_share"])
 out = Path(snakemake.output.causes).parent
 figs = diagnosis_figures(result, snakemake.output.figures)
 diagnosis.write_outputs(out, result.residuals, result.causes, result.gain, figs)
