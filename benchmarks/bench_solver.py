@@ -46,13 +46,13 @@ def bench_kernel(element_mm: float, repeat: int) -> None:
     u = np.random.default_rng(0).standard_normal((3, mesh.nz + 1, mesh.ny + 1, mesh.nx + 1))
     out = np.empty_like(u)
     res = {}
-    for name, k in [("structured (8 slices + 1 dgemm)", StructuredKernel(mesh, ke)),
+    for name, k in [("structured (8 slabs + 1 dgemm)", StructuredKernel(mesh, ke)),
                     ("naive gather + bincount scatter", NaiveKernel(mesh, ke, "bincount")),
                     ("naive gather + np.add.at scatter", NaiveKernel(mesh, ke, "add_at"))]:
         t = median_time(lambda: k.force(u, out), repeat, 10)
         res[name] = t
         print(f"  {name:36s} {t * 1e3:7.3f} ms/eval  {mesh.n_elements / t / 1e6:6.2f} M element-steps/s")
-    s = res["structured (8 slices + 1 dgemm)"]
+    s = res["structured (8 slabs + 1 dgemm)"]
     for name, t in res.items():
         if not name.startswith("structured"):
             print(f"  speed-up of structured over {name}: {t / s:.2f}x")

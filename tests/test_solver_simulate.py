@@ -169,3 +169,28 @@ def test_contact_candidate_pruning_is_exact():
     assert a.sn == pytest.approx(c.sn, rel=1e-10)
     assert np.allclose(a.trace["tangential_n"], c.trace["tangential_n"], rtol=1e-9, atol=1e-12)
     assert (a.trace["contact_nodes"] == c.trace["contact_nodes"]).all()
+
+
+def test_contact_gap_and_penalty_length_options():
+    """contact_gap 'normal': normal stiffness k on any slope, so the slope leaves the time-step bound; the
+    statics are unchanged (SN = mu sqrt(1+s^2) on a plane tilted across the slide). penalty_length_mm equal to
+    the element height is the default penalty; a longer one is softer (deeper penetration, longer dt)."""
+    s = 0.5
+    law = ConstantFriction(0.4)
+    vert = simulate(TiltedPlane(slope_y=s), 20, law, FAST)
+    norm = simulate(TiltedPlane(slope_y=s), 20, law, FAST.replace(contact_gap="normal"))
+    assert norm.dt_s > vert.dt_s
+    assert norm.meta["slope_bound"] == pytest.approx(s * s, rel=1e-6)
+    assert norm.sn == pytest.approx(0.4 * np.sqrt(1 + s * s), rel=0.01)
+    # same contact force, (1 + s^2) times softer along the normal: deeper vertical penetration
+    assert norm.max_penetration_um == pytest.approx(vert.max_penetration_um * (1 + s * s), rel=0.05)
+    same = simulate(FlatPlane(), 20, law, FAST.replace(penalty_length_mm=FAST.element_mm))
+    base = simulate(FlatPlane(), 20, law, FAST)
+    assert same.sn == pytest.approx(base.sn, rel=1e-12) and same.dt_s == pytest.approx(base.dt_s, rel=1e-12)
+    soft = simulate(FlatPlane(), 20, law, FAST.replace(penalty_length_mm=4 * FAST.element_mm))
+    # 4x softer: deeper (2.9x at the sliding start's peak, dynamic), a longer stable step, SN still mu
+    assert soft.max_penetration_um > 2.5 * base.max_penetration_um and soft.dt_s > base.dt_s
+    assert soft.sn == pytest.approx(0.4, rel=0.005)
+    for bad in (dict(contact_gap="sideways"), dict(penalty_length_mm=0.0)):
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            SolverConfig(**bad)

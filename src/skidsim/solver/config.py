@@ -58,6 +58,19 @@ class SolverConfig:
     iteration on the assembled slider plus the contact penalty bound. ``mass_scaling`` (>= 1) multiplies the
     density (dt grows with its square root); time scaling is not offered (friction depends on slip speed).
 
+    Contact gap ``contact_gap``: ``"vertical"`` (default) penalises the vertical penetration ``d = z_s - z`` with
+    potential ``k d^2 / 2``; its stiffness along the surface normal is ``k (1 + |grad z|^2)``, so on steep
+    flanks the contact is stiffer than ``k`` (31x at the steepest point of site E1-1, slope 5.5) and the
+    stable time step shrinks with the steepest slope. ``"normal"`` penalises the normal gap
+    ``d_n = d / sqrt(1 + |grad z|^2)`` (force ``k d_n`` along the normal, normal stiffness ``k`` on any slope,
+    time step independent of the texture); see docs/solver.md for its effect on SN and cost.
+
+    Penalty length ``penalty_length_mm``: ``None`` (default) uses the element height ``h_z`` in the penalty below,
+    so the contact stiffness *per unit area* ``E / h_z`` grows as the mesh is refined (the penalty layer is the
+    first element layer's axial compliance); a number (mm) fixes it at ``E / penalty_length_mm`` on every mesh,
+    a mesh-independent interface compliance (0.5 mm reproduces the 0.5 mm reference mesh exactly). See the mesh
+    study in docs/solver.md.
+
     Contact: penalty stiffness per bottom node ``penalty_scale * E * A_node / h_z`` (N/m; ``penalty_scale`` 1 is
     the axial stiffness of the first element layer under the node).
 
@@ -95,6 +108,8 @@ class SolverConfig:
     dt_safety: float = 0.9
     mass_scaling: float = 1.0
     penalty_scale: float = 1.0
+    contact_gap: str = "vertical"
+    penalty_length_mm: float | None = None
     trace_every: int = 1
     vtu_frames: int = 50
     progress_every_s: float = 10.0
@@ -122,6 +137,12 @@ class SolverConfig:
                               f"({self.slide_length_mm}), got {self.window_start_mm}")
         if int(self.trace_every) < 1 or int(self.vtu_frames) < 1:
             raise ConfigError("solver config fields 'trace_every'/'vtu_frames': expected integers >= 1")
+        if self.penalty_length_mm is not None and not self.penalty_length_mm > 0:
+            raise ConfigError(f"solver config field 'penalty_length_mm': expected None or > 0 mm, "
+                              f"got {self.penalty_length_mm!r}")
+        if self.contact_gap not in ("vertical", "normal"):
+            raise ConfigError(f"solver config field 'contact_gap': expected 'vertical' or 'normal', "
+                              f"got {self.contact_gap!r}")
         if self.edge_margin_mm < 0:
             raise ConfigError(f"solver config field 'edge_margin_mm': expected >= 0 mm, got {self.edge_margin_mm}")
         object.__setattr__(self, "prony_g", tuple(float(g) for g in self.prony_g))

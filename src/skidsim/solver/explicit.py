@@ -10,9 +10,14 @@ Model (details and conventions in docs/solver.md):
   ``u(n+1) = u(n) + dt v(n+1/2)``. ``dt = dt_safety * 2 / omega_max``, ``omega_max^2 = lambda_max(M^-1 K)``
   (power iteration on the assembled slider) + ``max_i k_i (1 + |grad z|^2_max) / m_i`` (contact penalty bound,
   Weyl's inequality; the slope bound is sampled over the swept strip).
-* **Contact** (:mod:`skidsim.solver.contact`): bottom-face nodes against the rigid heightfield, penalty on the
-  vertical penetration ``d = z_surface(x, y) - z_node`` with potential ``k d^2 / 2`` (exactly conservative);
-  the force is ``k d (-dz/dx, -dz/dy, 1)``, i.e. along the surface normal.
+* **Contact**: bottom-face nodes against the rigid heightfield, penalty on the vertical penetration
+  ``d = z_surface(x, y) - z_node`` with potential ``k d^2 / 2`` (exactly conservative),
+  ``k = penalty_scale E A_node / h`` with ``h`` the element height or ``penalty_length_mm``; the force is
+  ``k d (-dz/dx, -dz/dy, 1)``, i.e. along the surface normal (``contact_gap = "normal"``: ``k`` divided by
+  ``1 + |grad z|^2``, i.e. ``k d_n`` on the normal gap, normal stiffness ``k`` on any slope; the time-step bound
+  then drops the slope factor). On a :class:`skidsim.reconstruct.Heightfield` only the *candidate* nodes are
+  evaluated: those below the per-cell Bernstein upper bound of the bicubic surface
+  (:class:`skidsim.solver.surfaces.SurfaceBound`); the others cannot touch, so the result is unchanged.
 * **Friction**: ``mu(s)`` of the node's own slip speed ``s`` (magnitude of its tangential velocity; the pavement
   is at rest), Coulomb bound ``mu(s) N``, regularised near ``s = 0`` by the *stick limit*: the friction force never
   exceeds the force that stops the node's predicted tangential velocity within the step (``m |v_t,trial| / dt``).
@@ -198,7 +203,8 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     minv = 1.0 / mass
     kern = build_kernel(mesh, mat)
     area_b = mesh.nodal_tributary_area_bottom().T.copy()  # (ny+1, nx+1) m^2
-    k_pen = config.penalty_scale * mat.youngs_modulus_pa * area_b / mesh.hz  # N/m per bottom node
+    h_pen = mesh.hz if config.penalty_length_mm is None else config.penalty_length_mm * 1e-3  # m
+    k_pen = config.penalty_scale * mat.youngs_modulus_pa * area_b / h_pen  # N/m per bottom node
     f_top = -config.load_n * area_b / area_b.sum()        # N per top node (same tributary pattern)
     m_b = mass[0]
     m_holder = float(mass[-1].sum())                     # the top face moves as one rigid holder in z
@@ -208,7 +214,9 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     if slope_bound is None:
         slope_bound = _max_slope_sq(pavement, x0, min(ext[1], x0 + L + slide), y0, y0 + W,
                                     spacing_m=min(mesh.hx, mesh.hy) / 4)
-    omega_pen_sq = float(np.max(k_pen * (1.0 + slope_bound) / m_b))
+    normal_gap = config.contact_gap == "normal"
+    # normal stiffness of the contact: k (1 + |grad z|^2) for the vertical gap, k for the normal gap
+    omega_pen_sq = float(np.max(k_pen * (1.0 if normal_gap else 1.0 + slope_bound) / m_b))
     omega = math.sqrt(omega_el ** 2 + omega_pen_sq)
     dt = config.dt_safety * 2.0 / omega
 
@@ -333,6 +341,8 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
             ia = cand
             d = gx = gy = np.zeros(0)
         kd = k_pen_f[ia] * d
+        if normal_gap:  # k d_n along the normal: vertical component k d / (1 + |grad z|^2)
+            kd /= 1.0 + gx * gx + gy * gy
         fcn = np.empty((3, ia.size))
         np.multiply(kd, gx, out=fcn[0])
         np.negative(fcn[0], out=fcn[0])
