@@ -82,6 +82,18 @@ def test_no_analysis_rule_reads_truth(dry_default):
     assert truth_readers(r.stdout + r.stderr) == []
 
 
+def test_our_calibration_waits_for_the_three_reference_sites(dry_default):
+    """calibration.ours.prior_sites = 3: E1-1, C1-1, C6-3 are calibrated without a prior; every other site's 'ours'
+    job reads their three results, and no 'study' job reads any calibration."""
+    r, _ = dry_default
+    refs = {f"results/sites/{s}/calibration_ours.json" for s in ("E1-1", "C1-1", "C6-3")}
+    jobs = [inputs for rule, inputs in job_inputs(r.stdout + r.stderr) if rule == "calibrate"]
+    assert len(jobs) == 72
+    with_prior = [inputs for inputs in jobs if refs <= set(inputs)]
+    without = [inputs for inputs in jobs if not any(f.endswith("calibration_ours.json") for f in inputs)]
+    assert len(with_prior) == 33 and len(without) == 39  # 33 non-reference 'ours'; 36 'study' + 3 references
+
+
 def test_truth_firewall_detects_a_leak(tmp_path):
     """The check above can fail: a rule that reads a truth file is reported."""
     leaky = tmp_path / "Snakefile"
