@@ -50,6 +50,19 @@ def test_build_residuals_interpolates_and_drops_out_of_range():
     assert (r["section"] == "S1").all()
 
 
+def test_texture_model_shape_is_sim_minus_pred():
+    """The between-site functional form's profile: between residual - within residual = sn_sim - sn_pred."""
+    sites, measured, simulated, predicted = _tiny()
+    r = dg.build_residuals(sites, measured, simulated, predicted)
+    d = dg._texture_model_shape(r, 10.0)
+    assert list(d.index) == ["b"] and list(d.columns) == [20.0, 40.0]
+    assert d.loc["b", 20.0] == pytest.approx(0.50 - 0.52)
+    assert d.loc["b", 40.0] == pytest.approx(0.40 - 0.46)
+    # a between-site point without a within-site residual: None (the test falls back to the between residual)
+    drop = (r["level"] == "within-site") & (r["site"] == "b") & (r["speed_kmh"] == 40.0)
+    assert dg._texture_model_shape(r[~drop], 10.0) is None
+
+
 @pytest.mark.parametrize("mutate, column", [
     (lambda m: m.assign(kind=["calibration", "bogus", "trace", "calibration", "validation"]), "kind"),
     (lambda m: m.drop(columns="mu"), "mu"),
@@ -226,9 +239,12 @@ def test_texture_clusters_and_families():
 
 @pytest.mark.slow
 def test_null_campaigns_name_nothing(tmp_path):
+    """Null campaigns with DFT traces every 4 km/h (as real campaigns have): many dependent points per site."""
     named = []
     for seed in range(20):
-        tables, _ = _campaign_dir(tmp_path, 100 + seed, None, trace_step_kmh=0)
+        tables, _ = _campaign_dir(tmp_path, 100 + seed, None, trace_step_kmh=4.0)
+        # per site the trace file holds 20-80 km/h every 4 km/h plus the validation samples at 30/50/70 km/h
+        assert (tables["measured"]["kind"] == "trace").sum() == 36 * (16 + 3)
         res = dg.build_residuals(tables["sites"], tables["measured"], tables["simulated"], tables["predicted"])
         causes = dg.screen_candidates(res, tables["sites"], tables["texture"], seed=seed)
         # enough permutations for the smallest p-value to pass BH in the larger family at its share of fdr

@@ -13,8 +13,9 @@ every numeric column of the texture table (all bands), each as a ``"main"`` effe
 level only) and interacting with speed (``"x_speed"``: a free speed profile times the covariate), plus the
 ``"functional_form"`` of mu(v) (a residual shape shared by all sites) at each level. For each: the statistic
 (sum of squares of the residual explained by the candidate), its permutation p-value (whole sites permuted; whole
-sections, among sections of equal size, for covariates constant within sections; random sign flips of whole site
-profiles for the functional form), false-discovery control over *testing units* in two families, and the
+sections, among sections of equal size, for covariates constant within sections; random sign flips of whole
+sections' profiles for the functional form, which between sites is the shape the texture model adds to the
+within-site residual, ``sn_sim - sn_pred``), false-discovery control over *testing units* in two families, and the
 cross-validated gain (leave-one-section-out) of adding the candidate to a residual model. Units: correlated
 texture parameters (complete-linkage clusters, every pair |Spearman rho| >= ``cluster_rho``) are one unit per
 level and kind, tested by the max-statistic over their members under the same permutations; every other candidate
@@ -250,6 +251,31 @@ def _residual_matrix(res: pd.DataFrame, speed_bin_kmh: float) -> tuple[list, np.
     return list(tab.index), tab.columns.to_numpy(float), tab.to_numpy(float)
 
 
+def _texture_model_shape(residuals: pd.DataFrame, speed_bin_kmh: float) -> pd.DataFrame | None:
+    """Per site and speed bin (index site, columns bin centres km/h) the mean of ``between-site residual -
+    within-site residual`` of the same measured points, i.e. ``sn_sim - sn_pred`` (mu): what the texture model
+    adds to the calibrated simulation's residual. None where some between-site point has no within-site residual
+    (the between-site functional form then falls back to the between-site residual itself)."""
+    cols = ["site", "kind", "speed_kmh", "measured"]
+    if "measured" not in residuals.columns or "kind" not in residuals.columns:
+        return None
+    parts = []
+    for level in LEVELS:
+        r = residuals.loc[residuals["level"] == level, cols + ["residual"]]
+        r = r.assign(site=r["site"].astype(str))
+        parts.append(r.assign(_k=r.groupby(cols).cumcount()))
+    w, b = parts
+    m = b.merge(w, on=cols + ["_k"], how="left", suffixes=("", "_w"))
+    if m.empty or m["residual_w"].isna().any():
+        return None
+    m = m.assign(residual=m["residual"] - m["residual_w"])
+    try:
+        ids, bins, R = _residual_matrix(m, speed_bin_kmh)
+    except InputError:
+        return None
+    return pd.DataFrame(R, index=ids, columns=bins)
+
+
 def _basis(values: pd.Series, dtype: str) -> np.ndarray:
     """Orthonormal basis (n, q) of the centred design of one covariate."""
     if dtype == "numeric":
@@ -425,7 +451,11 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     goes below a significant coarser section-level grouping of the same level and kind (parsimony); the rest by
     ``p_adjusted`` and ``z``. ``n_permutations=None`` uses :func:`auto_permutations` for the larger family size
     divided by its share of ``fdr``. Residuals are averaged per site and speed bin (``speed_bin_kmh``); only bins
-    observed at every site of a level are used.
+    observed at every site of a level are used. The between-site functional form tests the mean over sites of
+    the binned, per-site centred ``between residual - within residual`` of the same points (= ``sn_sim - sn_pred``,
+    :func:`_texture_model_shape`; falls back to the between-site residual when points lack a within-site
+    residual): the between-site residuals share the texture model's estimated shape, so sign flips of their
+    section profiles were anti-conservative (docs/model-criticism.md, section 2).
 
     Multiple testing (docs/model-criticism.md, section 2): texture columns are clustered
     (:func:`texture_clusters`, ``cluster_rho``) and a cluster is tested per level and kind by its max-statistic;
@@ -451,6 +481,9 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         level_data[level] = (site_ids, bins, R)
     if not level_data:
         raise InputError("residuals", "at least 4 sites with residuals at one level")
+    ff_delta = _texture_model_shape(residuals, speed_bin_kmh) if "between-site" in level_data else None
+    if ff_delta is not None and set(ff_delta.index) != set(level_data["between-site"][0]):
+        ff_delta = None
     if not 0 < primary_share < 1:
         raise ConfigError(f"primary_share must be in (0, 1), got {primary_share}")
     temp_cols = temperature_columns(cov, info) if temperature_column is None else [temperature_column]
@@ -525,13 +558,22 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                     tests.append(dict(variable=c, level=level, kind=kind, T=T[k], Tp=Tp[:, k], sse0=sse0,
                                       sse1=sse1, n=n, S=Y.shape[1], direction=direction, source=info[c][0],
                                       dtype=dtype, section_level=section_level[c]))
-        # functional form: mean residual shape over sites, random sign flips of whole sections' profiles
+        # functional form: mean residual shape over sites, random sign flips of whole sections' profiles.
+        # Between sites the shape tested is the part the texture model adds to the within-site residual
+        # (sim - pred per point, :func:`_texture_model_shape`): the rest is the within-site residual of the same
+        # points, tested there; the between-site residuals of all held-out sites share the texture model's
+        # estimate of the simulated shape (its calibration errors), so their section profiles are not
+        # independent and flipping them is anti-conservative (docs/model-criticism.md, section 2)
+        Dff = D
+        if level == "between-site" and ff_delta is not None:
+            Dff = ff_delta.loc[site_ids].to_numpy(float)
+            Dff = Dff - Dff.mean(axis=1, keepdims=True)
         flips = rng.choice(np.array([-1.0, 1.0]), size=(P, n_sec))[:, np.unique(sec, return_inverse=True)[1]]
-        Tff = n * float((D.mean(axis=0) ** 2).sum())
-        Tffp = ((flips @ D) ** 2).sum(axis=1) / n
-        sse0, sse1 = _cv_sse(D, None, "", _folds(sec, False))
+        Tff = n * float((Dff.mean(axis=0) ** 2).sum())
+        Tffp = ((flips @ Dff) ** 2).sum(axis=1) / n
+        sse0, sse1 = _cv_sse(Dff, None, "", _folds(sec, False))
         tests.append(dict(variable="functional_form", level=level, kind="functional_form", T=Tff, Tp=Tffp,
-                          sse0=sse0, sse1=sse1, n=n, S=S, direction=0, source="residual", dtype="",
+                          sse0=sse0, sse1=sse1, n=n, S=Dff.shape[1], direction=0, source="residual", dtype="",
                           section_level=False))
     # p-values; testing units (single candidates, or texture clusters tested by their max-statistic) in two
     # families, each with its own step-up FDR procedure at its share of fdr (FDR is subadditive over a partition
