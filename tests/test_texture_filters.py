@@ -131,3 +131,22 @@ def test_default_mad_keeps_genuine_voids_that_tukey_clips():
     keep[[150, 420, 800]] = False
     assert np.array_equal(out.heights[0][keep], prof[keep])
     assert despeckle(s, "tukey")[1] > 3  # Tukey's lower fence cuts into the void bottoms
+
+
+def test_crop_y_centred_keeps_the_middle_band_and_the_grid():
+    """The quick configuration's crop: the centred rows spanning the extent, every column, the same spacings."""
+    from skidsim.errors import ConfigError
+    from skidsim.texture import TextureOptions
+
+    h = np.arange(101 * 7, dtype=float).reshape(101, 7)  # row i holds 7 i .. 7 i + 6
+    s = Surface(h, dx=0.05, dy=0.1)
+    c = s.crop_y_centred(4.0)  # 4 mm / 0.1 mm = 40 intervals -> 41 rows, first row (101 - 41) // 2 = 30
+    assert c.shape == (41, 7) and c.dx == 0.05 and c.dy == 0.1
+    assert c.heights[0, 0] == 7 * 30 and c.heights[-1, -1] == 7 * 70 + 6
+    assert abs(c.height_mm - 4.0) < 1e-12
+    assert s.crop_y_centred(1e3).shape == s.shape  # capped at the scan
+    with pytest.raises(ValueError, match="positive number of mm"):
+        s.crop_y_centred(0.0)
+    assert TextureOptions(crop_y_mm=50.0).crop_y_mm == 50.0
+    with pytest.raises(ConfigError, match="texture.crop_y_mm"):
+        TextureOptions(crop_y_mm=-1.0)

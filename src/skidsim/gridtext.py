@@ -26,7 +26,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from skidsim.errors import ScanFormatError
 from skidsim.surface import Surface
@@ -90,6 +89,8 @@ def _spacing(path: Path, keys: dict) -> tuple[float, float, float]:
 
 def _bad_cell(path, df: pd.DataFrame, first_row: int, expected="a number or an empty cell") -> None:
     """Raise for the first cell that is not numeric (row = file line number, column = 1-based index)."""
+    import pandas as pd  # imported on use: most workflow steps never need it
+
     for j in range(df.shape[1]):
         col = df.iloc[:, j]
         if not pd.api.types.is_numeric_dtype(col):
@@ -101,6 +102,8 @@ def _bad_cell(path, df: pd.DataFrame, first_row: int, expected="a number or an e
 
 
 def _read_matrix(path: Path, text: str) -> Surface:
+    import pandas as pd  # imported on use: most workflow steps never need it
+
     lines = text.splitlines()
     keys, n_head = _header(lines)
     dx, dy, scale = _spacing(path, keys)
@@ -167,6 +170,8 @@ def _fit_axis(path, coord, axis, step, c0):
 
 
 def _read_xyz(path: Path, text: str) -> Surface:
+    import pandas as pd  # imported on use: most workflow steps never need it
+
     lines = text.splitlines()
     body_start = 0
     while body_start < len(lines) and (lines[body_start].startswith("#") or not lines[body_start].strip()):
@@ -234,6 +239,8 @@ def write_grid_text(path, surface: Surface) -> None:
     ``# unit=mm`` header (invalid points as empty cells), or ``.xyz`` ``x y z`` lines (mm, invalid as ``nan``,
     coordinates ``x0_mm + j*dx``). Values are written with Python's shortest round-trip repr.
     """
+    import pandas as pd  # imported on use: most workflow steps never need it
+
     path = Path(path)
     suffix = path.suffix.lower()
     h = np.asarray(surface.heights, dtype=np.float64)

@@ -89,3 +89,16 @@ class Surface:
     def crop(self, rows: slice, cols: slice) -> "Surface":
         """A sub-surface (view copied) by row and column slices."""
         return self.with_heights(np.array(self.heights[rows, cols]))
+
+    def crop_y_centred(self, extent_mm: float) -> "Surface":
+        """The centred band of rows spanning at most ``extent_mm`` (mm) along y; all columns kept.
+
+        ``round(extent_mm / dy) + 1`` rows (capped at the scan), starting at ``(rows - n) // 2``; the band keeps
+        the row spacing, so its y extent is ``(n - 1) * dy``. Used by the quick configuration (texture option
+        ``crop_y_mm``) to work on part of each scan.
+        """
+        if not (np.isfinite(extent_mm) and extent_mm > 0):
+            raise ValueError(f"Surface {self.name!r}: crop extent must be a positive number of mm, got {extent_mm}")
+        n = min(self.shape[0], int(round(extent_mm / self.dy)) + 1)
+        r0 = (self.shape[0] - n) // 2
+        return self.crop(slice(r0, r0 + n), slice(None))

@@ -9,7 +9,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from .errors import CampaignError
 from .runlog import atomic_path
@@ -44,6 +43,8 @@ def site_table(config: dict, campaign_dir: str | Path | None) -> pd.DataFrame:
     For a user campaign ``sites.csv`` is read for its ``site``, ``section``, ``scan`` and ``dft`` columns only;
     everything else is checked by the ``validate_campaign`` rule, which names every problem at once.
     """
+    import pandas as pd  # imported on use: most workflow steps never need it
+
     if campaign_dir is None:
         from . import synthetic
 

@@ -8,6 +8,10 @@ from skidsim.workflow_support import save_surfaces
 log = setup_logging(snakemake.log[0])
 o = TextureOptions(**snakemake.params.cfg)
 surface = read_scan(snakemake.input.scan)
+if o.crop_y_mm:  # quick configuration: a centred band of rows (every later texture and FE step sees only it)
+    full_shape = surface.shape
+    surface = surface.crop_y_centred(o.crop_y_mm)
+    log.info("cropped to the centred %.1f mm band of rows: %s of %s points", o.crop_y_mm, surface.shape, full_shape)
 invalid = surface.invalid_fraction
 clean, n_replaced = texture.despeckle(surface, method=o.despeckle_method, k=o.despeckle_k, axis=o.despeckle_axis)
 filled = texture.fill_invalid(clean, method=o.fill)

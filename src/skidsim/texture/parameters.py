@@ -55,7 +55,10 @@ class TextureOptions:
     butterworth_order; acf_threshold (s of Sal/Str); acf_on_border ("nan"/"bound"); material ratios
     vm_p_pct / vv_q_pct (%); mr_classes; pruning_pct and pruning_reference ("Sz"/"Sq"); exclude_edge;
     spc_half_window (points); motif_pruning_pct; furrow_window_mm; furrow_min_depth_pct; groups: the
-    parameter groups to compute; mpd_axis; workers (scipy.fft threads).
+    parameter groups to compute; mpd_axis; workers (scipy.fft threads); crop_y_mm (mm or None): work on the
+    centred band of this many mm of each scan's rows (y) from the despeckle step on, so every texture
+    parameter, the MPD and the FE pavement come from that band (the quick configuration: about half the area;
+    None: the whole scan).
     """
 
     despeckle_method: str = "mad"
@@ -80,6 +83,7 @@ class TextureOptions:
     groups: tuple[str, ...] = tuple(GROUPS)
     mpd_axis: int = 1
     workers: int = 1
+    crop_y_mm: float | None = None
 
     def __post_init__(self) -> None:
         def bad(key, expected):
@@ -106,6 +110,8 @@ class TextureOptions:
         unknown_groups = sorted(set(self.groups) - set(GROUPS))
         if unknown_groups:
             raise ConfigError(f"texture.groups: unknown group(s) {unknown_groups}; expected among {list(GROUPS)}")
+        if self.crop_y_mm is not None and not (isinstance(self.crop_y_mm, (int, float)) and self.crop_y_mm > 0):
+            bad("crop_y_mm", "null or a positive number of mm")
         if int(self.butterworth_order) < 1 or int(self.workers) < 1 or int(self.spc_half_window) < 1:
             bad("butterworth_order", "butterworth_order, workers, spc_half_window >= 1")
 
