@@ -286,11 +286,19 @@ class InpDeck:
     notes: tuple[str, ...] = field(default_factory=tuple)
 
 
+_PCT_FORMATS = {"{:.10e}": "%.10e", "{:d}": "%d", "{:.10g}": "%.10g"}
+
+
 def _fmt_rows(ids: np.ndarray, arr: np.ndarray, fmt: str = "{:.10e}") -> str:
-    lines = []
-    for i, row in zip(ids, arr):
-        lines.append(f"{int(i)}, " + ", ".join(fmt.format(v) for v in np.atleast_1d(row)))
-    return "\n".join(lines) + "\n"
+    """``id, v1, v2, ...`` lines; one %-format per row on Python scalars (same text as ``fmt.format`` per
+    value, 3-4x faster: the decks of a 0.5 mm pavement have ~100k node lines)."""
+    ids = np.asarray(ids)
+    a = np.asarray(arr).reshape(len(ids), -1)
+    pct = _PCT_FORMATS.get(fmt)
+    if pct is None:  # any other format: the general (slow) path
+        return "".join(f"{int(i)}, " + ", ".join(fmt.format(v) for v in row) + "\n" for i, row in zip(ids, a))
+    rowfmt = "%d, " + ", ".join([pct] * a.shape[1])
+    return "\n".join(rowfmt % (i, *row) for i, row in zip(ids.astype(np.int64).tolist(), a.tolist())) + "\n"
 
 
 def _id_lines(ids, per_line: int = 12) -> str:

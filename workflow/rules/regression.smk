@@ -32,7 +32,9 @@ rule regression:
         test=TEST_SITES,
     log:
         "logs/regression.log",
-    threads: 1
+    benchmark:
+        "benchmarks/out/regression.tsv"
+    threads: 2
     resources:
         mem_mb=2000,
         runtime=20,

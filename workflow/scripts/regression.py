@@ -27,7 +27,8 @@ n_train = len(design.X) - len(snakemake.params.test)
 analysis = regression.run_analysis(
     design, n_train=n_train, seed=cfg["seed"], grouped_by=cfg.get("grouped_by"), rule=cfg["rule"],
     models=cfg["models"], figure11_models=cfg["figure11_models"], g=g, measured_dft=measured,
-    speeds_kmh=cfg["prediction_speeds_kmh"], criterion=cfg["criterion"], inner_folds=cfg["inner_folds"])
+    speeds_kmh=cfg["prediction_speeds_kmh"], criterion=cfg["criterion"], inner_folds=cfg["inner_folds"],
+    workers=snakemake.threads)
 if sorted(analysis.test_ids) != sorted(snakemake.params.test):
     raise RuntimeError(f"split mismatch: workflow held out {snakemake.params.test}, analysis {analysis.test_ids}")
 paths = regression.write_analysis(analysis, Path(snakemake.output.table5).parent)
