@@ -30,6 +30,7 @@ include: "workflow/rules/solver.smk"
 include: "workflow/rules/calibration.smk"
 include: "workflow/rules/regression.smk"
 include: "workflow/rules/diagnosis.smk"
+include: "workflow/rules/fe_extension.smk"
 include: "workflow/rules/targets.smk"
 
 

@@ -3,7 +3,7 @@
 The study's model is ``SN_sim(v) = g * mu(v)`` with the exponential-decay law
 ``mu(s) = mu_k + (mu_s - mu_k) exp(-alpha s)`` (slip speed ``s`` in m/s, ``alpha`` in s/m, ``g`` the site's
 geometric factor from the FE, ~1). Every extension below is a documented formula that modifies that curve;
-none needs the FE except :class:`ViscoelasticFE`, which is only a hook (a flag passed to the solver).
+none needs the FE except :class:`ViscoelasticFE`, a flag the workflow acts on (:mod:`skidsim.fe_extension`).
 See ``docs/model-criticism.md`` for the formulas, sources and conventions.
 
 * :class:`TemperatureShift` -- time-temperature superposition (Williams, Landel & Ferry 1955; Grosch 1963):
@@ -22,7 +22,8 @@ See ``docs/model-criticism.md`` for the formulas, sources and conventions.
 * :class:`SharedShape` -- a residual shape shared by all sites (the functional form of mu(v) is wrong): an additive
   speed profile ``h(v)``, the mean training residual, linearly interpolated in speed.
 * :class:`ViscoelasticFE` -- hook for viscoelastic rubber in the FE (Prony series; hysteresis on macrotexture,
-  Persson 2001, Klueppel & Heinrich 2000). The workflow passes ``solver_flags`` to the solver; not fitted here.
+  Persson 2001, Klueppel & Heinrich 2000). Not fitted here: :mod:`skidsim.fe_extension` and the workflow's ``fe_gain`` rule
+  recalibrate with the Prony series and measure the gain.
 
 All curve functions are vectorised NumPy; every random draw elsewhere takes an explicit seed.
 """

@@ -3,7 +3,7 @@
 DIAG = f"{RESULTS}/diagnosis"
 
 
-rule diagnosis:
+checkpoint diagnosis:
     """Find what the simulation gets wrong, name the cause, extend the model, measure the gain."""
     input:
         ingest=INGEST,

@@ -22,7 +22,7 @@ def all_targets():
     if config["mesh_study"]["sizes_mm"]:
         targets.append(f"{RESULTS}/mesh_study/figure9.png")
     if POPULATION:
-        targets += [f"{RESULTS}/regression/figure11.png", f"{DIAG}/causes.json"]
+        targets += [f"{RESULTS}/regression/figure11.png", f"{DIAG}/causes.json", f"{DIAG}/fe_gain.json"]
     if SYNTHETIC:
         targets.append(f"{RESULTS}/truth/campaign.json")
     for s in SITES:
