@@ -412,3 +412,71 @@ def test_cv_threads_give_identical_predictions():
     two = R.cross_validated_predictions(X, Y, groups, models, workers=2)
     pd.testing.assert_frame_equal(one, two, check_exact=True)
     assert len(one) == len(X) * len(models)
+
+
+def test_law_from_curve_inverts_curve_targets():
+    """Three anchors, three unknowns: an identifiable law is recovered exactly; for any law in the bounds the
+    curve at the anchors is reproduced (the parameters of a nearly straight curve need not be)."""
+    laws = pd.DataFrame({"mu_s": [0.70, 0.55, 0.80], "mu_k": [0.30, 0.20, 0.0], "alpha": [0.10, 0.05, 0.02]},
+                        index=["a", "b", "c"])
+    C = R.curve_targets(laws)
+    assert list(C.columns) == [f"mu@{v:g}" for v in R.CURVE_ANCHORS_KMH]
+    assert C.loc["a", "mu@40"] == pytest.approx(0.30 + 0.40 * np.exp(-0.10 * 40 / 3.6), abs=1e-12)
+    for site, row in C.iterrows():
+        ms, mk, a = R.law_from_curve(row.to_numpy())
+        back = ExponentialDecay(ms, mk, a).mu_kmh(np.asarray(R.CURVE_ANCHORS_KMH))
+        assert np.allclose(back, row.to_numpy(), atol=1e-7), site
+    assert R.law_from_curve(C.loc["a"].to_numpy()) == pytest.approx((0.70, 0.30, 0.10), abs=1e-5)
+
+
+def _slow_twin(law: ExponentialDecay) -> ExponentialDecay:
+    """The law with mu_k = 0 (a slow decay) closest to ``law`` at the anchors: the other parameterisation of
+    a nearly straight DFT curve."""
+    from skidsim.calibration import fit_exponential_decay
+
+    v = np.asarray(R.CURVE_ANCHORS_KMH)
+    twin, _ = fit_exponential_decay(v, law.mu_kmh(v), bounds={"mu_s": (0, 0.85), "mu_k": (0, 0), "alpha": (0, 1)})
+    return twin
+
+
+def test_curve_targets_average_curves_not_parameters():
+    """Two laws with nearly the same curve over 20-60 km/h but very different parameters (mu_k 0.35 with a fast
+    decay; mu_k = 0 with a slow one): the law of the mean parameters is far from both curves (the decay is convex
+    in alpha), the ``mean@curve`` law is the mean curve."""
+    v = np.asarray(R.CURVE_ANCHORS_KMH)
+    fast = ExponentialDecay(0.62, 0.35, 0.20)
+    slow = _slow_twin(fast)
+    spread = np.max(np.abs(fast.mu_kmh(v) - slow.mu_kmh(v)))
+    assert slow.mu_k == 0 and spread < 0.015
+    Y = pd.DataFrame([[fast.mu_s, fast.mu_k, fast.alpha], [slow.mu_s, slow.mu_k, slow.alpha]] * 6,
+                     columns=list(R.PARAMETERS), index=[f"S{i:02d}" for i in range(12)])
+    X = pd.DataFrame({"profile_MPD": np.linspace(0.5, 1.5, 12)}, index=Y.index)
+    mean_curve = R.curve_targets(Y).mean().to_numpy()
+    p_par = R.predict_parameters("mean", X, Y, X.iloc[:1]).iloc[0]
+    p_cur = R.predict_parameters("mean@curve", X, Y, X.iloc[:1]).iloc[0]
+    assert list(p_cur.index) == list(R.PARAMETERS)
+    mu_par = ExponentialDecay(*p_par[list(R.PARAMETERS)]).mu_kmh(v)
+    mu_cur = ExponentialDecay(*p_cur[list(R.PARAMETERS)]).mu_kmh(v)
+    assert np.max(np.abs(mu_cur - mean_curve)) < 1e-6
+    assert np.max(np.abs(mu_par - mean_curve)) > 5 * spread, (mu_par, mean_curve, spread)
+
+
+def test_curve_model_recovers_curves_that_are_linear_in_texture():
+    """Friction curves linear in one texture factor; each site's calibrated parameters are one of the two
+    near-equivalent parameterisations of its curve at random: ridge@curve predicts held-out sections' curves
+    far better than ridge on the parameters."""
+    X, F, groups = latent_campaign(k=2, seed=3)
+    v = np.asarray(R.CURVE_ANCHORS_KMH)
+    rng = np.random.default_rng(4)
+    rows = []
+    for f in F[:, 0]:
+        law = ExponentialDecay(*R.law_from_curve(0.45 + 0.1 * np.exp(-0.1 * 2.0 * v / 3.6) + 0.02 * f))
+        rows.append(_slow_twin(law) if rng.random() < 0.5 else law)
+    Y = pd.DataFrame([[r.mu_s, r.mu_k, r.alpha] for r in rows], columns=list(R.PARAMETERS), index=X.index)
+    truth = pd.DataFrame({"site": np.repeat(X.index, len(v)), "speed_kmh": np.tile(v, len(X)),
+                          "mu": R.curve_targets(Y).to_numpy().ravel()})
+    cvp = R.cross_validated_predictions(X, Y, groups, ["ridge", "ridge@curve"])
+    t = R.score_predictions(cvp, Y, measured_dft=truth, speeds_kmh=v)
+    pooled = t[(t["quantity"] == "dft") & t["speed_kmh"].isna()].set_index("model")["rmse"]
+    assert pooled["ridge@curve"] < 0.006, pooled
+    assert pooled["ridge"] > 3 * pooled["ridge@curve"], pooled

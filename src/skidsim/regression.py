@@ -69,6 +69,11 @@ DEFAULT_SPEEDS_KMH = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
 TWO_VARIABLES = ("profile_MPD", "micro_Sq")
 #: Models compared by :func:`cross_validate_models` by default ("pca" uses the "cv" rule, "pca:study" the study's).
 DEFAULT_MODELS = ("mean", "pca", "pca:study", "ridge", "pls", "lasso", "two_variable")
+#: Suffix of a model fitted on curve targets (see :func:`predict_parameters`), e.g. ``"ridge@curve"``.
+CURVE_SUFFIX = "@curve"
+#: Speeds (km/h) at which the ``@curve`` models' targets are the law's friction values: the DFT's standard
+#: calibration speeds (the study's DFT20, DFT40, DFT60).
+CURVE_ANCHORS_KMH = (20.0, 40.0, 60.0)
 #: Order used to break exact ties (simpler first).
 _SIMPLICITY = ("mean", "two_variable", "pca", "pls", "ridge", "lasso")
 TEMPERATURE_COLUMN = "temperature_c"
@@ -738,13 +743,49 @@ def fit_model(name: str, X: pd.DataFrame, y: pd.Series, *, groups=None, seed: in
     return FittedModel(name, target, st, est, hyper)
 
 
+def curve_targets(Y: pd.DataFrame, anchors_kmh: Sequence[float] = CURVE_ANCHORS_KMH) -> pd.DataFrame:
+    """The friction law of each row of ``Y`` (``mu_s``, ``mu_k``, ``alpha`` s/m) evaluated at ``anchors_kmh``
+    (km/h): columns ``mu@<v>`` (dimensionless), indexed like ``Y``. The targets of the ``<model>@curve`` models."""
+    for c in PARAMETERS:
+        if c not in Y.columns:
+            raise InputError(None, f"a '{c}' column in the friction table", column=c)
+    out = {f"mu@{v:g}": [ExponentialDecay(r.mu_s, r.mu_k, r.alpha).mu_kmh(float(v)) for r in Y.itertuples()]
+           for v in anchors_kmh}
+    return pd.DataFrame(out, index=Y.index)
+
+
+def law_from_curve(values, anchors_kmh: Sequence[float] = CURVE_ANCHORS_KMH) -> tuple[float, float, float]:
+    """(mu_s, mu_k, alpha s/m) of the law closest to friction ``values`` at ``anchors_kmh`` (km/h), within the
+    study's bounds (bounded least squares, :func:`skidsim.calibration.fit_exponential_decay`): exact wherever a
+    bounded law passes through the values (three anchors: three equations, three unknowns), else the nearest."""
+    from skidsim.calibration import fit_exponential_decay
+
+    law, _ = fit_exponential_decay(np.asarray(anchors_kmh, dtype=float), np.asarray(values, dtype=float))
+    return law.mu_s, law.mu_k, law.alpha
+
+
 def predict_parameters(model_name: str, X_train: pd.DataFrame, Y_train: pd.DataFrame, X_test: pd.DataFrame, *,
                        groups_train=None, seed: int = 0, inner_folds: int = 5,
                        selection: str = "one_se") -> pd.DataFrame:
     """Fit ``model_name`` on the training sites, one model per column of ``Y_train`` (``mu_s``, ``mu_k``,
-    ``alpha`` s/m), and predict the test sites. Returns a frame indexed like ``X_test``, columns of ``Y_train``."""
+    ``alpha`` s/m), and predict the test sites. Returns a frame indexed like ``X_test``, columns of ``Y_train``.
+
+    ``<model>@curve`` (e.g. ``ridge@curve``): the targets are the laws' friction values at
+    :data:`CURVE_ANCHORS_KMH` (:func:`curve_targets`), each predicted by ``<model>``; the predicted values are
+    turned back into (mu_s, mu_k, alpha) by :func:`law_from_curve`. Why: the back-calculated parameters are
+    not identified by a DFT curve over 20-60 km/h (a nearly straight curve is fitted as well by a high mu_k with
+    a fast decay as by mu_k = 0 with a slow one), so per-parameter regressions average incompatible parameter
+    sets and the law of the averaged parameters is not the average curve (docs/regression.md, "Curve targets").
+    """
     if len(X_train) != len(Y_train):
         raise InputError(None, f"one friction row per training site ({len(X_train)})", got=len(Y_train))
+    if model_name.endswith(CURVE_SUFFIX):
+        base = model_name[:-len(CURVE_SUFFIX)]
+        C = predict_parameters(base, X_train, curve_targets(Y_train), X_test, groups_train=groups_train,
+                               seed=seed, inner_folds=inner_folds, selection=selection)
+        laws = [law_from_curve(row) for row in C.to_numpy(dtype=float)]
+        return pd.DataFrame(laws, index=X_test.index, columns=list(PARAMETERS))[
+            [c for c in Y_train.columns if c in PARAMETERS]]
     out = {}
     for c in Y_train.columns:
         m = fit_model(model_name, X_train, Y_train[c], groups=groups_train, seed=seed, inner_folds=inner_folds,
