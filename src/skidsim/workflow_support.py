@@ -182,3 +182,34 @@ def measured_points(dft_points, site: str) -> dict[float, float]:
     """``{speed_kmh: mu}`` of one site from the ingest's DFT points table."""
     d = dft_points[dft_points["site"] == site]
     return {float(v): float(m) for v, m in zip(d["speed_kmh"], d["mu"])}
+
+
+def calibrate_ours_site(simulate, traces_parquet: str | Path, site: str, ours_cfg: dict, speeds_kmh,
+                        prior_jsons, log):
+    """Our calibration (:func:`skidsim.calibration.calibrate_fast`) of one site as the workflow runs it: the site's
+    DFT trace from the ingest's ``traces_parquet``, config ``calibration.ours`` (tol, max_fe_runs, model,
+    fit_range_kmh in km/h), calibration speeds in km/h, and the surrogate prior from the reference sites'
+    calibration JSON files ``prior_jsons`` (none, or no converged reference: a pilot run, logged). Used by the
+    elastic calibration and the viscoelastic recalibration alike. Returns the CalibrationResult."""
+    import pandas as pd
+
+    from . import calibration
+
+    traces = pd.read_parquet(traces_parquet)
+    trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
+    prior = None
+    if prior_jsons:
+        refs = [calibration.CalibrationResult.from_json(p) for p in prior_jsons]
+        try:
+            prior = calibration.surrogate_prior(refs)
+        except ValueError as exc:  # e.g. no reference site converged: go on without a prior, say so
+            log.warning("%s: no surrogate prior (%s); calibrating with a pilot run", site, exc)
+        else:
+            log.info("%s: surrogate prior from %d reference site(s): b %s, slip offsets %s km/h at %s km/h", site,
+                     prior["n_sites"], [round(x, 4) for x in prior["b"]],
+                     [round(x, 2) for x in prior["slip_offsets_kmh"]], prior["speeds_kmh"])
+    fit_range = tuple(ours_cfg["fit_range_kmh"]) if ours_cfg.get("fit_range_kmh") else None
+    return calibration.calibrate_fast(simulate, trace, speeds_kmh=[float(v) for v in speeds_kmh],
+                                      tol=ours_cfg["tol"], max_fe_runs=ours_cfg["max_fe_runs"],
+                                      model=ours_cfg["model"], fit_range_kmh=fit_range, source=str(traces_parquet),
+                                      prior=prior)

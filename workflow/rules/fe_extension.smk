@@ -3,6 +3,7 @@
 # "FE extension: viscoelastic slider"). With diagnosis.fe_extension `auto` the per-site runs are scheduled only
 # after the diagnosis checkpoint has named a within-site shape cause; `always` forces them, `never` skips them.
 import json
+from types import SimpleNamespace
 
 from skidsim.fe_extension import fe_extension_decision, viscoelastic_solver_cfg
 
@@ -11,11 +12,8 @@ FE_SOLVER = viscoelastic_solver_cfg(config["solver"], config["diagnosis"].get("v
 
 
 def fe_prior_of(wildcards):
-    """The same surrogate prior as the site's elastic calibration with our method (the reference sites' elastic
-    calibrations; none for a reference site)."""
-    if wildcards.site in PRIOR_SITES or not PRIOR_SITES:
-        return []
-    return [f"{RESULTS}/sites/{s}/calibration_ours.json" for s in PRIOR_SITES]
+    """The same surrogate prior as the site's elastic calibration with our method (common.smk)."""
+    return calibration_prior_of(SimpleNamespace(site=wildcards.site, method="ours"))
 
 
 rule fe_recalibrate:
@@ -33,7 +31,6 @@ rule fe_recalibrate:
     params:
         calibration=config["calibration"],
         solver=FE_SOLVER,
-        speeds=config["speeds"]["calibration_kmh"],
         calibration_speeds=config["speeds"]["calibration_kmh"],
         validation_speeds=config["speeds"]["validation_kmh"],
         cache=f"{RESULTS}/cache/{{site}}/fe_viscoelastic.parquet",

@@ -4,31 +4,18 @@ import pandas as pd
 
 from skidsim import calibration
 from skidsim.runlog import setup_logging, write_parquet
-from skidsim.workflow_support import measured_points, site_simulator
+from skidsim.workflow_support import calibrate_ours_site, measured_points, site_simulator
 
 log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site
-c = snakemake.params.calibration["ours"]
 # the solver section carries the Prony terms: the cache key (every solver field) differs from the elastic runs',
 # and the viscoelastic evaluations live in their own cache file
 simulate, cache, scfg = site_simulator(snakemake.input.pavement, snakemake.params.solver, snakemake.params.cache,
                                        site)
 log.info("%s: viscoelastic recalibration, Prony g %s, tau %s s, element %.2f mm, %d cached FE evaluations", site,
          scfg.prony_g, scfg.prony_tau_s, scfg.element_mm, len(cache))
-speeds = [float(v) for v in snakemake.params.speeds]
-traces = pd.read_parquet(snakemake.input.traces)
-trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
-prior = None
-if snakemake.input.prior:
-    refs = [calibration.CalibrationResult.from_json(p) for p in snakemake.input.prior]
-    try:
-        prior = calibration.surrogate_prior(refs)
-    except ValueError as exc:
-        log.warning("%s: no surrogate prior (%s); calibrating with a pilot run", site, exc)
-fit_range = tuple(c["fit_range_kmh"]) if c.get("fit_range_kmh") else None
-result = calibration.calibrate_fast(simulate, trace, speeds_kmh=speeds, tol=c["tol"], max_fe_runs=c["max_fe_runs"],
-                                    model=c["model"], fit_range_kmh=fit_range, source=snakemake.input.traces,
-                                    prior=prior)
+result = calibrate_ours_site(simulate, snakemake.input.traces, site, snakemake.params.calibration["ours"],
+                             snakemake.params.calibration_speeds, snakemake.input.prior, log)
 log.info("%s viscoelastic: %s; %d FE runs, %d steps, converged=%s %s", site, result.params, result.n_fe_runs,
          result.n_steps, result.converged, result.message)
 write_parquet(snakemake.output.history, result.history.assign(site=site, method="ours_viscoelastic"))
