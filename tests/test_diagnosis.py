@@ -184,6 +184,79 @@ def test_campaign_directory_round_trip(tmp_path):
     assert np.allclose(tables["texture"]["mpd_mm"], tex["mpd_mm"])
 
 
+def test_texture_adjustment_picks_the_texture_dimension():
+    """M linear in the first two texture PCs (plus small noise): leave-one-section-out CV picks k = 2, and the
+    nuisance design spans the intercept and exactly those scores."""
+    rng = np.random.default_rng(5)
+    n = 36
+    sec = np.repeat([f"S{k}" for k in range(12)], 3)
+    scores = rng.normal(size=(n, 8)) * np.linspace(3, 0.5, 8)
+    M = 0.5 + 0.04 * scores[:, [0]] - 0.03 * scores[:, [1]] + rng.normal(0, 0.002, size=(n, 5))
+    k, N = dg.texture_adjustment(M, scores, sec)
+    assert k == 2
+    assert np.allclose(N, np.c_[np.ones(n), scores[:, :2]])
+    # pure noise: nothing to adjust for beyond the mean (k small), never more than the cap
+    k0, _ = dg.texture_adjustment(rng.normal(size=(n, 5)), scores, sec)
+    assert k0 <= 1 and dg.texture_adjustment(M, scores, sec, k_max=1)[0] == 1
+
+
+def test_texture_adjusted_statistic_is_the_partial_sum_of_squares():
+    """Frisch-Waugh: the adjusted statistic |Q~' (I - H) y|^2 equals SSE([1, PCs]) - SSE([1, PCs, z]) of two
+    direct least-squares fits (an independent computation), and a covariate inside the texture span has no basis."""
+    rng = np.random.default_rng(6)
+    n = 30
+    S = rng.normal(size=(n, 3))
+    z = 0.8 * S[:, 0] + rng.normal(size=n)
+    y = 1 + S @ [0.3, -0.2, 0.1] + 0.25 * z + rng.normal(0, 0.1, size=n)
+    N = np.c_[np.ones(n), S]
+    Q = dg._adjusted_basis(dg._basis(pd.Series(z), "numeric"), N)
+    T = float(((Q.T @ dg._residualise(y[:, None], N)) ** 2).sum())
+
+    def sse(X):
+        return float(((y - X @ np.linalg.lstsq(X, y, rcond=None)[0]) ** 2).sum())
+
+    assert T == pytest.approx(sse(N) - sse(np.c_[N, z]), rel=1e-10)
+    assert dg._adjusted_basis(dg._basis(pd.Series(S[:, 1] * 2 + 1), "numeric"), N).shape[1] == 0
+
+
+def test_texture_adjusted_test_recovers_an_effect_the_texture_model_absorbed():
+    """Temperature correlates with texture; the texture model (fitted on curves that carry the temperature effect)
+    absorbs most of it, so the residual test is weak. Conditioning on texture names temperature, and its
+    texture-refit extension gains on held-out sites where the plain residual term cannot."""
+    rng = np.random.default_rng(8)
+    n, secs = 36, np.repeat([f"S{k:02d}" for k in range(12)], 3)
+    tex = rng.normal(size=(n, 4))
+    temp = 20 + 4 * tex[:, 0] + rng.normal(0, 3, n)
+    level = 0.45 + 0.05 * tex[:, 0] + 0.03 * tex[:, 1] - 0.006 * (temp - 20)
+    leak = np.polyfit(tex[:, 0], temp, 1)  # the texture model learns temperature through texture column 0
+    pred_level = 0.45 + 0.05 * tex[:, 0] + 0.03 * tex[:, 1] - 0.006 * (np.polyval(leak, tex[:, 0]) - 20) \
+        + rng.normal(0, 0.01, n)
+    v = np.arange(20.0, 71.0, 10.0)
+    shape = -0.002 * (v - 45)
+    sites = pd.DataFrame({"site": [f"s{i}" for i in range(n)], "section": secs, "temperature_c": temp})
+    wide = pd.DataFrame({"site": sites["site"], **{f"macro_P{j}": tex[:, j] for j in range(4)}})
+    rows_m, rows_s, rows_p = [], [], []
+    for i, s in enumerate(sites["site"]):
+        mu = level[i] + shape + rng.normal(0, 0.004, len(v))
+        rows_m += [dict(site=s, speed_kmh=vv, mu=m, kind="validation") for vv, m in zip(v, mu)]
+        rows_s += [dict(site=s, speed_kmh=vv, sn=level[i] + sh) for vv, sh in zip(v, shape)]
+        rows_p += [dict(site=s, speed_kmh=vv, sn_pred=pred_level[i] + sh) for vv, sh in zip(v, shape)]
+    r = dg.diagnose(sites, pd.DataFrame(rows_m), pd.DataFrame(rows_s), pd.DataFrame(rows_p), wide, seed=1,
+                    n_boot=300)
+    top = r.named
+    assert top is not None and top.variable == "temperature_c" and top.level == "between-site", r.causes[:3]
+    assert top.kind == "main" and top.texture_pcs >= 1 and top.direction == -1
+    own = r.gain["scopes"]["held_out_sites"]
+    assert own["gain_excludes_zero"] and own["rmse_after"] < own["rmse_before"], own
+    generic = own if r.gain["extension"] == "CovariateTerm" else \
+        next(a["scopes"]["held_out_sites"] for a in r.gain["alternatives"] if a["extension"] == "CovariateTerm")
+    assert generic["extension"]["settings"]["texture_pcs"] == top.texture_pcs
+    assert generic["gain_excludes_zero"] and generic["over_texture_refit"]["rmse_gain_ci"][0] > 0
+    plain = dg.screen_candidates(r.residuals, sites, wide, seed=1, adjust_texture=False)
+    t_plain = next(c for c in plain if c.variable == "temperature_c" and c.kind == "main")
+    assert t_plain.texture_pcs == -1 and t_plain.p_value > top.p_value
+
+
 @pytest.mark.parametrize("effect", ["temperature", "drainage", "wear", "mix"])
 def test_hidden_effect_is_named_and_extension_gains(tmp_path, effect):
     tables, truth = _campaign_dir(tmp_path, 0, effect)

@@ -157,7 +157,10 @@ class Cause:
     texture cluster; ``significant``: p_adjusted <= fdr and cv_gain > 0. ``family``: "primary" (functional form
     and the physical hypotheses: temperature, MPD x speed) or "secondary" (every other candidate); ``unit``: the
     tested unit (the variable itself, or ``cluster:<representative>`` for a texture cluster tested by its
-    max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster).
+    max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster);
+    ``texture_pcs``: for a between-site sites.csv covariate that varies within sections, the number of texture
+    principal components its test is conditioned on (the texture-adjusted test, :func:`texture_adjustment`);
+    -1 for the residual test.
     """
 
     variable: str
@@ -181,6 +184,7 @@ class Cause:
     family: str = ""
     unit: str = ""
     unit_p: float = float("nan")
+    texture_pcs: int = -1
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -276,6 +280,65 @@ def _texture_model_shape(residuals: pd.DataFrame, speed_bin_kmh: float) -> pd.Da
     return pd.DataFrame(R, index=ids, columns=bins)
 
 
+def texture_scores(cov: pd.DataFrame, info: dict) -> np.ndarray:
+    """Principal-component scores (n_sites, m) of the campaign's texture columns (``info`` source "texture"), each
+    standardised over the sites of ``cov``; columns ordered by explained variance. Unsupervised (no friction
+    enters), so the scores can be used inside any cross-validation fold. Empty (n, 0) without texture columns."""
+    cols = [c for c in cov.columns if info[c][0] == "texture"]
+    if not cols:
+        return np.zeros((len(cov), 0))
+    X = cov[cols].to_numpy(float)
+    sd = X.std(axis=0)
+    X = (X[:, sd > 0] - X[:, sd > 0].mean(axis=0)) / sd[sd > 0]
+    U, S, _ = np.linalg.svd(X, full_matrices=False)
+    keep = S > S[0] * 1e-10 if len(S) else S > 0
+    return U[:, keep] * S[keep]
+
+
+def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray,
+                       k_max: int | None = None) -> tuple[int, np.ndarray]:
+    """Nuisance design of the texture-adjusted between-site tests: ``(k, N)`` with ``N = [1, scores[:, :k]]``.
+
+    ``M`` (n_sites, n_bins): measured friction (mu) per site and speed bin. ``k`` minimises the
+    leave-one-section-out SSE of the least-squares fit of ``M`` on ``[1, first k texture PCs]`` over
+    ``k = 0 .. k_max`` (default ``min(n_sections - 2, n_sites // 3, available PCs)``): the texture model the test
+    conditions on is chosen without looking at any candidate, so the permutation test stays valid
+    (docs/model-criticism.md, section 2, "Texture-adjusted tests").
+    """
+    n = M.shape[0]
+    folds = np.unique(sections, return_inverse=True)[1]
+    n_sec = int(folds.max()) + 1
+    top = min(n_sec - 2, n // 3, scores.shape[1]) if k_max is None else min(int(k_max), scores.shape[1])
+    best_k, best = 0, np.inf
+    for k in range(max(top, 0) + 1):
+        X = np.c_[np.ones(n), scores[:, :k]]
+        sse = 0.0
+        for f in range(n_sec):
+            te = folds == f
+            beta, *_ = np.linalg.lstsq(X[~te], M[~te], rcond=None)
+            sse += float(((M[te] - X[te] @ beta) ** 2).sum())
+        if sse < best * (1 - 1e-12):
+            best_k, best = k, sse
+    return best_k, np.c_[np.ones(n), scores[:, :best_k]]
+
+
+def _residualise(A: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """A minus its least-squares projection on the columns of N."""
+    beta, *_ = np.linalg.lstsq(N, A, rcond=None)
+    return A - N @ beta
+
+
+def _adjusted_basis(B: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the part of a candidate's basis B orthogonal to the nuisance N (Frisch-Waugh); columns
+    that the texture spans (relative norm < 1e-6) are dropped."""
+    Bt = _residualise(B, N)
+    if Bt.shape[1] == 0:
+        return Bt
+    Qb, Rb = np.linalg.qr(Bt)
+    ok = np.abs(np.diag(Rb)) > 1e-6 * max(1.0, float(np.linalg.norm(B, axis=0).max()))
+    return Qb[:, ok]
+
+
 def _basis(values: pd.Series, dtype: str) -> np.ndarray:
     """Orthonormal basis (n, q) of the centred design of one covariate."""
     if dtype == "numeric":
@@ -345,13 +408,31 @@ def _folds(sections: np.ndarray, nested: bool) -> np.ndarray:
     return rank
 
 
-def _cv_sse(Y: np.ndarray, values: pd.Series | None, dtype: str, folds: np.ndarray) -> tuple[float, float]:
+def _cv_sse(Y: np.ndarray, values: pd.Series | None, dtype: str, folds: np.ndarray,
+            nuisance: np.ndarray | None = None) -> tuple[float, float]:
     """Cross-validated SSE of the residual model without and with the candidate.
 
     Without: training column means. With: numeric -> per-column OLS on [1, z]; categorical -> training group
     means (a level unseen in training -> training mean). ``values=None`` is the functional-form test: without = 0,
-    with = training column means.
+    with = training column means. ``nuisance`` (n, k) columns (texture PC scores of the texture-adjusted test)
+    enter both models: without = OLS on [1, nuisance], with = OLS on [1, nuisance, candidate] (categorical:
+    indicators of the training levels but the first; an unseen level gets none).
     """
+    if nuisance is not None and values is not None:
+        if dtype == "numeric":
+            Z = values.to_numpy(float)[:, None]
+        else:
+            lab = values.to_numpy(str)
+            Z = np.stack([lab == g for g in np.unique(lab)[1:]], axis=1).astype(float)
+        sse0 = sse1 = 0.0
+        for f in np.unique(folds):
+            te, tr = folds == f, folds != f
+            for X, acc in ((np.c_[np.ones(len(Y)), nuisance], 0), (np.c_[np.ones(len(Y)), nuisance, Z], 1)):
+                cols = np.abs(X[tr]).sum(axis=0) > 0
+                beta, *_ = np.linalg.lstsq(X[tr][:, cols], Y[tr], rcond=None)
+                e = float(((Y[te] - X[te][:, cols] @ beta) ** 2).sum())
+                sse0, sse1 = (sse0 + e, sse1) if acc == 0 else (sse0, sse1 + e)
+        return sse0, sse1
     sse0 = sse1 = 0.0
     for f in np.unique(folds):
         te, tr = folds == f, folds != f
@@ -443,7 +524,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                       corr_group: float = 0.9, speed_bin_kmh: float = 10.0, fdr_method: str = "bh",
                       min_cv_gain: float = 0.0, exclude=DEFAULT_EXCLUDE, cluster_rho: float = 0.8,
                       primary_share: float = 0.5, temperature_column: str | None = None,
-                      mpd_column: str | None = None) -> list[Cause]:
+                      mpd_column: str | None = None, adjust_texture: bool = True) -> list[Cause]:
     """Screen every candidate cause at every level; returns causes ranked by evidence.
 
     Ranking: significant causes first (statistical evidence decides whether a cause is named), among them by
@@ -464,6 +545,14 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     ``primary_share * fdr``, the secondary family (everything else) at ``(1 - primary_share) * fdr``.
     ``p_adjusted`` is on the fdr scale (family-adjusted unit p / share; for a cluster member at least its
     within-cluster single-step maxT p).
+
+    ``adjust_texture`` (default): between sites, every sites.csv covariate that varies within sections is tested
+    conditional on the texture: the measured curve (site x speed bin; main: site mean, x_speed: centred shape) is
+    regressed on ``[1, first k texture PCs]`` (:func:`texture_adjustment`), and the candidate's part orthogonal to
+    those PCs is tested against the residuals with the same nested permutations (Freedman & Lane 1983); its
+    ``cv_gain`` compares ``[1, PCs]`` with ``[1, PCs, candidate]`` out of section. Section-level covariates and
+    section identity keep the residual test (12 sections leave too few units to condition on k PCs). Needs the
+    ``measured`` column of the residual table.
     """
     _require(residuals, ("site", "level", "speed_kmh", "residual"), "residuals")
     if not 0 < fdr < 1:
@@ -473,12 +562,17 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     rng = np.random.default_rng(seed)
     tests = []  # dicts with level, kind, name, T, Tperm, cv, effect, direction, ...
     level_data = {}
+    measured_between = None
     for level in LEVELS:
         res = residuals[residuals["level"] == level]
         if res["site"].nunique() < 4:
             continue
         site_ids, bins, R = _residual_matrix(res.assign(site=res["site"].astype(str)), speed_bin_kmh)
         level_data[level] = (site_ids, bins, R)
+        if level == "between-site" and adjust_texture and "measured" in res.columns:
+            ids_m, bins_m, M = _residual_matrix(res.assign(site=res["site"].astype(str), residual=res["measured"]),
+                                                speed_bin_kmh)
+            measured_between = M if (ids_m == site_ids and np.array_equal(bins_m, bins)) else None
     if not level_data:
         raise InputError("residuals", "at least 4 sites with residuals at one level")
     ff_delta = _texture_model_shape(residuals, speed_bin_kmh) if "between-site" in level_data else None
@@ -535,13 +629,37 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         section_level = {c: bool((C[c].groupby(sec).nunique() == 1).all()) for c in C.columns}
         is_section_id = {c: section_level[c] and C[c].nunique() == n_sec for c in C.columns}
         bases = {c: _basis(C[c], info[c][1]) for c in C.columns}
-        for kind, Y in Ys.items():
-            for is_id, perms in ((True, perm_site), (False, perm_nested)):
-                names = [c for c in C.columns if is_section_id[c] == is_id and bases[c].shape[1] > 0]
+        # texture-adjusted tests (between sites, sites.csv covariates that vary within sections): the measured
+        # curve is regressed on [1, k texture PCs] (k by leave-one-section-out CV, no candidate involved) and the
+        # candidate's part orthogonal to the texture is tested against the residuals (Freedman & Lane 1983
+        # permutations: the reduced model's residuals move in the nested structure). A covariate that correlates
+        # with texture by chance is thus neither credited with texture's effect nor absorbed by the texture model
+        # (docs/model-criticism.md, section 2)
+        adj_k, N_adj, Ys_adj, Ys_cv = -1, None, {}, {}
+        adjusted = {c: False for c in C.columns}
+        if level == "between-site" and measured_between is not None:
+            scores = texture_scores(cov.loc[site_ids], info)
+            if scores.shape[1] > 0:
+                M = measured_between
+                adj_k, N_adj = texture_adjustment(M, scores, sec)
+                DM = M - M.mean(axis=1, keepdims=True)
+                Ys_cv = {"main": (M.mean(axis=1) - M.mean())[:, None], "x_speed": DM - DM.mean(axis=0)}
+                Ys_adj = {kind: _residualise(Yc, N_adj) for kind, Yc in Ys_cv.items()}
+                adjusted = {c: info[c][0] == "sites" and not section_level[c] and not is_section_id[c]
+                            for c in C.columns}
+        for kind, Y0 in Ys.items():
+            for is_id, perms, adj in ((True, perm_site, False), (False, perm_nested, False),
+                                      (False, perm_nested, True)):
+                if adj and N_adj is None:
+                    continue
+                Y = Ys_adj[kind] if adj else Y0
+                bk = {c: (_adjusted_basis(bases[c], N_adj) if adj else bases[c]) for c in C.columns
+                      if is_section_id[c] == is_id and adjusted[c] == adj and bases[c].shape[1] > 0}
+                names = [c for c in bk if bk[c].shape[1] > 0]
                 if not names:
                     continue
-                Q = np.concatenate([bases[c] for c in names], axis=1)
-                owner = np.concatenate([np.full(bases[c].shape[1], k) for k, c in enumerate(names)])
+                Q = np.concatenate([bk[c] for c in names], axis=1)
+                owner = np.concatenate([np.full(bk[c].shape[1], k) for k, c in enumerate(names)])
                 A = Q.T @ Y
                 T = np.bincount(owner, weights=(A * A).sum(axis=1), minlength=len(names))
                 Tp = _perm_stats(Y, Q, owner, len(names), perms)
@@ -549,15 +667,20 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                     dtype = info[c][1]
                     nested = dtype == "categorical" and \
                         bool((pd.Series(sec).groupby(C[c].to_numpy()).nunique() == 1).all())
-                    sse0, sse1 = _cv_sse(Y, C[c], dtype, _folds(sec, nested))
+                    if adj:
+                        sse0, sse1 = _cv_sse(Ys_cv[kind], C[c], dtype, _folds(sec, nested), nuisance=N_adj[:, 1:])
+                    else:
+                        sse0, sse1 = _cv_sse(Y, C[c], dtype, _folds(sec, nested))
                     direction = 0
                     if dtype == "numeric":
-                        z = C[c].to_numpy(float) - C[c].mean()
-                        target = Y[:, 0] if kind == "main" else D @ speed_c
+                        z = bk[c][:, 0] * np.sign(bk[c][:, 0] @ (C[c].to_numpy(float) - C[c].mean())) if adj \
+                            else C[c].to_numpy(float) - C[c].mean()
+                        target = Y[:, 0] if kind == "main" else (Y if adj else D) @ speed_c
                         direction = int(np.sign(z @ target))
                     tests.append(dict(variable=c, level=level, kind=kind, T=T[k], Tp=Tp[:, k], sse0=sse0,
                                       sse1=sse1, n=n, S=Y.shape[1], direction=direction, source=info[c][0],
-                                      dtype=dtype, section_level=section_level[c]))
+                                      dtype=dtype, section_level=section_level[c],
+                                      texture_pcs=adj_k if adj else -1))
         # functional form: mean residual shape over sites, random sign flips of whole sections' profiles.
         # Between sites the shape tested is the part the texture model adds to the within-site residual
         # (sim - pred per point, :func:`_texture_model_shape`): the rest is the within-site residual of the same
@@ -574,7 +697,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         sse0, sse1 = _cv_sse(Dff, None, "", _folds(sec, False))
         tests.append(dict(variable="functional_form", level=level, kind="functional_form", T=Tff, Tp=Tffp,
                           sse0=sse0, sse1=sse1, n=n, S=Dff.shape[1], direction=0, source="residual", dtype="",
-                          section_level=False))
+                          section_level=False, texture_pcs=-1))
     # p-values; testing units (single candidates, or texture clusters tested by their max-statistic) in two
     # families, each with its own step-up FDR procedure at its share of fdr (FDR is subadditive over a partition
     # of the hypotheses, so the overall FDR over units is <= fdr); see docs/model-criticism.md
@@ -651,7 +774,8 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                             cv_msr=float((t["sse0"] - t["sse1"]) / (t["n"] * t["S"])), statistic=float(t["T"]),
                             z=float(z), direction=t["direction"], source=t["source"], dtype=t["dtype"],
                             section_level=t["section_level"], n_sites=t["n"], n_permutations=P,
-                            family=u["family"], unit=u["name"], unit_p=float(unit_p[unit_of[j]])))
+                            family=u["family"], unit=u["name"], unit_p=float(unit_p[unit_of[j]]),
+                            texture_pcs=int(t["texture_pcs"])))
     causes.sort(key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     # parsimony: section identity ranks below a significant coarser section-level grouping (e.g. mix) of the
     # same level and kind, whose evidence it contains
@@ -708,11 +832,12 @@ def apply_extension(cause: Cause, sites: pd.DataFrame, texture_wide: pd.DataFram
     """
     if cause.kind == "functional_form":
         return ExtendedModel(cause, SharedShape(speed_bin_kmh=speed_bin_kmh), None, ViscoelasticFE())
-    generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope")
+    pcs = cause.texture_pcs if cause.dtype == "numeric" else -1
+    generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope", texture_pcs=pcs)
     cov, _ = site_covariates(sites, texture_wide)
     name = cause.variable.lower()
     if "temp" in name and cause.dtype == "numeric":
-        return ExtendedModel(cause, TemperatureShift(column=cause.variable), generic)
+        return ExtendedModel(cause, TemperatureShift(column=cause.variable, texture_pcs=pcs), generic)
     mpd = find_mpd_column(cov)
     if mpd is not None and cause.kind == "x_speed" and (
             cause.variable == mpd or mpd in cause.group or "macro" in name):
@@ -781,6 +906,60 @@ def _site_mean(x: np.ndarray, i: np.ndarray, n_sites: int) -> np.ndarray:
     return (np.bincount(i, weights=x, minlength=n_sites) / np.maximum(np.bincount(i, minlength=n_sites), 1))[i]
 
 
+def _texture_partial(cov: pd.DataFrame, sites: list, z: np.ndarray, train: np.ndarray, k: int) -> np.ndarray:
+    """``z`` minus its least-squares prediction from ``[1, first k texture PC scores]`` fitted on the training
+    sites (the scores are the ``_tpc<j>`` columns that :func:`evaluate_extension` adds to the covariates)."""
+    S = cov.loc[sites, [f"_tpc{j}" for j in range(1, k + 1)]].to_numpy(float)
+    X = np.c_[np.ones(len(sites)), S]
+    c, *_ = np.linalg.lstsq(X[train], z[train], rcond=None)
+    return z - X @ c
+
+
+def _site_target(on: str, scope: _Scope, values: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """Per site of the scope: the mean of ``values`` over its rows (``on="level"``, mu) or their least-squares
+    slope on the centred speed ``dv`` (``on="slope"``, mu per km/h)."""
+    i, n_s = scope.row_site, len(scope.sites)
+    if on == "level":
+        return np.bincount(i, weights=values, minlength=n_s) / np.bincount(i, minlength=n_s)
+    return np.bincount(i, weights=dv * values, minlength=n_s) / np.bincount(i, weights=dv * dv, minlength=n_s)
+
+
+def _refit_design(scope: _Scope, cov: pd.DataFrame, k: int, column: str | None) -> np.ndarray:
+    """Site design ``[1, PC_1..k]`` of the texture refit, plus the covariate ``column`` unless None."""
+    S = cov.loc[scope.sites, [f"_tpc{j}" for j in range(1, k + 1)]].to_numpy(float)
+    cols = [np.ones(len(scope.sites)), S] + ([cov.loc[scope.sites, column].to_numpy(float)] if column else [])
+    return np.column_stack(cols)
+
+
+def _refit_correction(on: str, beta, X: np.ndarray, scope: _Scope, before: np.ndarray,
+                      dv: np.ndarray) -> np.ndarray:
+    """Per-row correction of a texture refit: the site's level (``on="level"``) or speed slope of the prediction
+    is replaced by the linear model's ``X_i beta`` (fitted on the training sites' measured site means or slopes):
+    ``after = before + (X_i beta - mean_i before)`` or ``+ (X_i beta - slope_i before) (v - mean_i v)``; the
+    texture model's speed profile (level) is kept."""
+    d = (X @ np.asarray(beta) - _site_target(on, scope, before, dv))[scope.row_site]
+    return d if on == "level" else d * dv
+
+
+def texture_refit_reference(ext, scope: _Scope, cov: pd.DataFrame) -> np.ndarray:
+    """Cross-fitted reference for a texture-adjusted :class:`CovariateTerm`: the same refit without the covariate
+    (``[1, PC_1..k]`` only, same folds). Comparing the extension against it isolates what the named variable adds
+    beyond refitting the level (slope) on the texture PCs (gain.json ``over_texture_refit``)."""
+    folds = _ext_folds(ext, scope, cov)
+    before = scope.rows["before"].to_numpy(float)
+    y = scope.rows["measured"].to_numpy(float)
+    v = scope.rows["speed_kmh"].to_numpy(float)
+    dv = v - _site_mean(v, scope.row_site, len(scope.sites))
+    X = _refit_design(scope, cov, ext.texture_pcs, None)
+    out = np.full(len(before), np.nan)
+    for f in np.unique(folds):
+        train = folds != f
+        beta, *_ = np.linalg.lstsq(X[train], _site_target(ext.on, scope, y, dv)[train], rcond=None)
+        te = ~train[scope.row_site]
+        out[te] = (before + _refit_correction(ext.on, beta, X, scope, before, dv))[te]
+    return out
+
+
 def _physical_params(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> tuple[list, list]:
     """Names and bounds of the fitted parameters of a physical extension in a scope."""
     if isinstance(ext, TemperatureShift):
@@ -822,6 +1001,8 @@ def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, th
     b0, c0, a0 = scope.base
     if isinstance(ext, TemperatureShift):
         T = _site_values(cov, ext.column, scope.sites)
+        if ext.texture_pcs >= 0 and not within:
+            T = float(T[train].mean()) + _texture_partial(cov, scope.sites, T, train, ext.texture_pcs)
         anchor = float(T[train].mean())
         k = ext.speed_factor(T, anchor, float(theta[0]))
         bt = ext.vertical_factor(T, anchor, float(theta[1]) if len(theta) > 1 else None)
@@ -889,6 +1070,11 @@ def recalibrate(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> dic
         if ext.name not in cov.columns:
             raise InputError("sites table / texture table", f"column '{ext.name}'", column=ext.name)
         col = cov.loc[scope.sites, ext.name]
+        if pd.api.types.is_numeric_dtype(col) and ext.texture_pcs >= 0 and scope.name == "held_out_sites":
+            # texture-adjusted term: partial slope of the measured site mean (or speed slope) on z given the PCs
+            X = _refit_design(scope, cov, ext.texture_pcs, ext.name)
+            beta, *_ = np.linalg.lstsq(X[train], _site_target(ext.on, scope, y, dv)[train], rcond=None)
+            return {"numeric": True, "texture_pcs": ext.texture_pcs, "beta": beta.tolist()}
         if pd.api.types.is_numeric_dtype(col):
             z = col.to_numpy(float)
             zc = z - z[train].mean()
@@ -919,6 +1105,9 @@ def predict_extended(ext, params: dict, scope: _Scope, cov: pd.DataFrame, train:
         return before + np.interp(v, params["speed_kmh"], params["h"])
     col = cov.loc[scope.sites, ext.name]
     dv = v - _site_mean(v, scope.row_site, len(scope.sites))
+    if params.get("texture_pcs", -1) >= 0:
+        X = _refit_design(scope, cov, params["texture_pcs"], ext.name)
+        return before + _refit_correction(ext.on, params["beta"], X, scope, before, dv)
     if params["numeric"]:
         zr = (col.to_numpy(float) - params["z_mean"])[scope.row_site]
         X = np.c_[np.ones(len(v)), zr] if ext.on == "level" else np.c_[dv, zr * dv]
@@ -1050,7 +1239,9 @@ def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.
 
     The primary extension is the physical one unless its RMSE-gain interval at the cause's level does not exclude 0
     while the fallback's lower bound is higher ("no physical model fits"). Returns (gain dict, predictions)."""
-    cov, _ = site_covariates(sites, texture_wide)
+    cov, info = site_covariates(sites, texture_wide)
+    sc = texture_scores(cov, info)
+    cov = cov.join(pd.DataFrame(sc, index=cov.index, columns=[f"_tpc{j}" for j in range(1, sc.shape[1] + 1)]))
     own = "held_out_speeds" if model.cause.level == "within-site" else "held_out_sites"
     results = []
     for ext in [model.extension] + ([model.fallback] if model.fallback is not None else []):
@@ -1062,6 +1253,12 @@ def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.
             rows, params = cross_fit(ext, sc, cov)
             scopes[sc.name] = measure_gain(rows, n_boot=n_boot, seed=seed, ci=ci)
             scopes[sc.name]["extension"] = _ext_describe(ext, params)
+            if sc.name == "held_out_sites" and isinstance(ext, CovariateTerm) and ext.texture_pcs >= 0:
+                g3 = measure_gain(rows.assign(before=texture_refit_reference(ext, sc, cov)), n_boot=n_boot,
+                                  seed=seed, ci=ci)
+                scopes[sc.name]["over_texture_refit"] = {
+                    k: g3[k] for k in ("rmse_before", "rmse_before_ci", "rmse_after", "rmse_after_ci", "rmse_gain",
+                                       "rmse_gain_ci", "r2_gain", "r2_gain_ci", "gain_excludes_zero")}
             if sc.name == "held_out_sites":
                 ref = shared_level_reference(ext, sc, cov)
                 g2 = measure_gain(rows.assign(before=ref), n_boot=n_boot, seed=seed, ci=ci)
@@ -1090,14 +1287,16 @@ def diagnose(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFram
              n_permutations: int | None = None, seed: int = 0, fdr: float = 0.05, corr_group: float = 0.9,
              speed_bin_kmh: float = 10.0, fdr_method: str = "bh", n_boot: int = 2000, ci: float = 0.95,
              exclude=DEFAULT_EXCLUDE, cluster_rho: float = 0.8, primary_share: float = 0.5,
-             temperature_column: str | None = None, mpd_column: str | None = None) -> DiagnosisResult:
+             temperature_column: str | None = None, mpd_column: str | None = None,
+             adjust_texture: bool = True) -> DiagnosisResult:
     """The whole diagnosis on campaign-level tables: residuals, screening, extension for the named cause,
     cross-fitted gain. With no named cause, ``gain`` holds the baseline RMSE/R^2 (after = before)."""
     res = build_residuals(sites, measured, simulated, predicted)
     causes = screen_candidates(res, sites, texture_wide, n_permutations=n_permutations, seed=seed, fdr=fdr,
                                corr_group=corr_group, speed_bin_kmh=speed_bin_kmh, fdr_method=fdr_method,
                                exclude=exclude, cluster_rho=cluster_rho, primary_share=primary_share,
-                               temperature_column=temperature_column, mpd_column=mpd_column)
+                               temperature_column=temperature_column, mpd_column=mpd_column,
+                               adjust_texture=adjust_texture)
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
     if top is not None:

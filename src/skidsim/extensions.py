@@ -129,7 +129,10 @@ class TemperatureShift:
     (fitted by :func:`skidsim.diagnosis.recalibrate` within ``t_ref_bounds_c``); ``level_per_c`` (1/K) the
     vertical shift slope, fitted within ``level_bounds_per_c`` when ``fit_level`` (else held at its value; 0 =
     the pure WLF speed shift); ``column`` the temperature
-    column (deg C) of sites.csv. Source: Williams, Landel & Ferry (1955) J. Am. Chem. Soc. 77, 3701; Grosch (1963)
+    column (deg C) of sites.csv. ``texture_pcs >= 0`` (cause found by the texture-adjusted test): between sites the
+    shift is evaluated at ``T_anchor + T~_i``, ``T~`` the part of T that the first ``texture_pcs`` texture
+    principal components do not predict (fitted on the training sites), since the texture model already carries
+    the texture-predictable part. Source: Williams, Landel & Ferry (1955) J. Am. Chem. Soc. 77, 3701; Grosch (1963)
     Proc. R. Soc. A 274, 21 (rubber friction master curves); Ferry (1980) Viscoelastic Properties of Polymers,
     3rd ed., Wiley, ch. 11 (vertical shift factor b_T).
     """
@@ -142,6 +145,7 @@ class TemperatureShift:
     fit_level: bool = True
     level_bounds_per_c: tuple[float, float] = (-0.05, 0.05)
     physical: bool = True
+    texture_pcs: int = -1
 
     def vertical_factor(self, temperature_c, anchor_c: float, level_per_c: float | None = None):
         """Vertical shift factor ``b_T = 1 + level_per_c (T - T_anchor)`` (dimensionless; level_per_c in 1/K),
@@ -194,11 +198,16 @@ class CovariateTerm:
     ``(c1 + b1 z_i)(v - v_mean,i)`` with ``v_mean,i`` the mean of site i's evaluated speeds (km/h), a pure shape
     term that leaves the site's mean level alone. Numeric z is centred on the training mean; a categorical
     covariate enters through group means (level) or group slopes (slope) fitted on the training sites; a level
-    unseen in training gets the training-wide value."""
+    unseen in training gets the training-wide value. ``texture_pcs >= 0`` (a cause found by the texture-adjusted
+    test, numeric z, between sites): the term is ``gamma * z~_i`` with ``z~ = z - [1, PC_1..k] c`` the part of z
+    that the first ``texture_pcs`` texture principal components do not predict (c fitted on the training sites),
+    and ``gamma`` the partial slope of the measured site mean (level) or speed slope (slope) on z given the same
+    PCs: the texture model already carries the texture-predictable part of the effect, the term adds the rest."""
 
     name: str
     on: str = "level"
     physical: bool = False
+    texture_pcs: int = -1
 
     def __post_init__(self):
         if self.on not in ("level", "slope"):

@@ -51,7 +51,8 @@ result = diagnosis.diagnose(sites, measured, simulated, pred[["site", "speed_kmh
                             n_permutations=cfg.get("n_permutations"), seed=cfg["seed"], fdr=cfg["fdr"],
                             corr_group=cfg["corr_group"], speed_bin_kmh=cfg["speed_bin_kmh"],
                             fdr_method=cfg["fdr_method"], n_boot=cfg["n_boot"], ci=cfg["ci"],
-                            cluster_rho=cfg["cluster_rho"], primary_share=cfg["primary_share"])
+                            cluster_rho=cfg["cluster_rho"], primary_share=cfg["primary_share"],
+                            adjust_texture=cfg.get("adjust_texture", True))
 out = Path(snakemake.output.causes).parent
 figs = diagnosis_figures(result, snakemake.output.figures)
 diagnosis.write_outputs(out, result.residuals, result.causes, result.gain, figs)
