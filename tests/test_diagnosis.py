@@ -252,6 +252,10 @@ def test_texture_adjusted_test_recovers_an_effect_the_texture_model_absorbed():
         next(a["scopes"]["held_out_sites"] for a in r.gain["alternatives"] if a["extension"] == "CovariateTerm")
     assert generic["extension"]["settings"]["texture_pcs"] == top.texture_pcs
     assert generic["gain_excludes_zero"] and generic["over_texture_refit"]["rmse_gain_ci"][0] > 0
+    # the added-variable data recover the true partial effect, -0.006 mu per K (Frisch-Waugh slope)
+    av = r.added_variable
+    assert len(av) == n and np.polyfit(av["covariate_adj"], av["measured_adj"], 1)[0] == pytest.approx(-0.006,
+                                                                                                      abs=0.0015)
     plain = dg.screen_candidates(r.residuals, sites, wide, seed=1, adjust_texture=False)
     t_plain = next(c for c in plain if c.variable == "temperature_c" and c.kind == "main")
     assert t_plain.texture_pcs == -1 and t_plain.p_value > top.p_value

@@ -295,15 +295,18 @@ def texture_scores(cov: pd.DataFrame, info: dict) -> np.ndarray:
     return U[:, keep] * S[keep]
 
 
-def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray,
-                       k_max: int | None = None) -> tuple[int, np.ndarray]:
+def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray, k_max: int | None = None,
+                       variance_share: float = 0.9) -> tuple[int, np.ndarray]:
     """Nuisance design of the texture-adjusted between-site tests: ``(k, N)`` with ``N = [1, scores[:, :k]]``.
 
-    ``M`` (n_sites, n_bins): measured friction (mu) per site and speed bin. ``k`` minimises the
-    leave-one-section-out SSE of the least-squares fit of ``M`` on ``[1, first k texture PCs]`` over
-    ``k = 0 .. k_max`` (default ``min(n_sections - 2, n_sites // 3, available PCs)``): the texture model the test
-    conditions on is chosen without looking at any candidate, so the permutation test stays valid
-    (docs/model-criticism.md, section 2, "Texture-adjusted tests").
+    ``M`` (n_sites, n_bins): measured friction (mu) per site and speed bin. ``k`` is the larger of (a) the number of
+    leading PCs that minimises the leave-one-section-out SSE of the least-squares fit of ``M`` on
+    ``[1, first k texture PCs]`` and (b) the number of PCs that explain ``variance_share`` of the texture variance,
+    capped at ``k_max`` (default ``min(n_sections - 2, n_sites // 3, available PCs)``). (b) guards against
+    under-adjustment: a covariate's effect inflates the CV error of the texture-only fit, so (a) alone can stop
+    before a texture direction the covariate correlates with, and the test would credit the covariate with that
+    texture's effect; over-adjustment only costs power. No candidate enters the choice, so the permutation test
+    stays valid (docs/model-criticism.md, section 2, "Texture-adjusted tests").
     """
     n = M.shape[0]
     folds = np.unique(sections, return_inverse=True)[1]
@@ -319,6 +322,10 @@ def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray,
             sse += float(((M[te] - X[te] @ beta) ** 2).sum())
         if sse < best * (1 - 1e-12):
             best_k, best = k, sse
+    var = scores.var(axis=0)
+    if len(var) and var.sum() > 0:
+        k_var = int(np.searchsorted(np.cumsum(var) / var.sum(), variance_share - 1e-12) + 1)
+        best_k = max(best_k, min(k_var, max(top, 0)))
     return best_k, np.c_[np.ones(n), scores[:, :best_k]]
 
 
@@ -1230,6 +1237,27 @@ class DiagnosisResult:
     gain: dict
     predictions: pd.DataFrame  # held-out rows: scope, site, speed_kmh, kind, measured, before, after
     covariates: pd.DataFrame = field(default_factory=pd.DataFrame)
+    added_variable: pd.DataFrame = field(default_factory=pd.DataFrame)  # site, covariate_adj, measured_adj
+
+
+def added_variable(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide: pd.DataFrame | None, cause: Cause,
+                   speed_bin_kmh: float = 10.0, exclude=DEFAULT_EXCLUDE) -> pd.DataFrame:
+    """Added-variable (partial regression) data of a texture-adjusted cause: per site, the covariate and the
+    measured site mean (``main``, mu) or speed slope (``x_speed``, mu per 10 km/h), both minus their least-squares
+    fit on ``[1, first texture_pcs texture PCs]``. The slope of measured_adj on covariate_adj is the partial effect
+    the test found (Frisch-Waugh). Empty for a cause without texture adjustment or a categorical covariate."""
+    if cause.texture_pcs < 0 or cause.dtype != "numeric":
+        return pd.DataFrame()
+    res = residuals[residuals["level"] == "between-site"]
+    ids, bins, M = _residual_matrix(res.assign(site=res["site"].astype(str), residual=res["measured"]),
+                                    speed_bin_kmh)
+    cov, info = site_covariates(sites, texture_wide, exclude=exclude)
+    C = cov.loc[ids]
+    N = np.c_[np.ones(len(ids)), texture_scores(C, info)[:, :cause.texture_pcs]]
+    sc = bins - bins.mean()
+    y = M.mean(axis=1) if cause.kind == "main" else (M - M.mean(axis=1, keepdims=True)) @ sc / (sc @ sc) * 10.0
+    return pd.DataFrame({"site": ids, "covariate_adj": _residualise(C[cause.variable].to_numpy(float), N),
+                         "measured_adj": _residualise(y, N)})
 
 
 def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.DataFrame,
@@ -1314,7 +1342,8 @@ def diagnose(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFram
         gain = {"cause": None, "extension": None, "level": None, "scope": None, "scopes": scopes,
                 "fe_hook": None, "alternatives": [], "gain_excludes_zero": False}
         preds = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-    return DiagnosisResult(res, causes, top, gain, preds, cov)
+    av = pd.DataFrame() if top is None else added_variable(res, sites, texture_wide, top, speed_bin_kmh, exclude)
+    return DiagnosisResult(res, causes, top, gain, preds, cov, av)
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -1381,7 +1410,9 @@ def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, fi
         grp = _fmt_group(top["group"]) or "-"
         lines += [f"**Named cause: `{top['variable']}`** ({top['level']}, {top['kind']}); correlated group: {grp}; "
                   f"effect {top['effect']:.4f} mu, cv gain {top['cv_gain']:.3f}, p = {top['p_value']:.2g}, "
-                  f"p_adj = {top['p_adjusted']:.2g}.", "",
+                  f"p_adj = {top['p_adjusted']:.2g}"
+                  + (f"; tested beyond the texture (conditional on {top['texture_pcs']} texture principal "
+                     "components)" if top.get("texture_pcs", -1) >= 0 else "") + ".", "",
                   f"Extension applied: **{gain.get('extension')}**"
                   + (f"; FE hook: {gain['fe_hook']['solver_flags']}" if gain.get("fe_hook") else "") + ".", ""]
     lines += ["## Gain on held-out data (bootstrap over sites)", "",
@@ -1397,11 +1428,17 @@ def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, fi
             lines += ["", f"{name}: against a campaign-wide level offset of the texture model alone (RMSE "
                           f"{o['rmse_before']:.4f}), the extension's RMSE gain is {_fmt_ci(o, 'rmse_gain')} "
                           "(what the named variable itself adds)."]
+        o = d.get("over_texture_refit")
+        if o is not None and gain.get("extension"):
+            lines += ["", f"{name}: against the same refit on the texture PCs without the named variable (RMSE "
+                          f"{o['rmse_before']:.4f}), the RMSE gain is {_fmt_ci(o, 'rmse_gain')}."]
     lines += ["", f"## Candidates (top {top_n} of {len(clist)}, ranked by evidence)", "",
+              "Kind `main*` / `x_speed*`: tested beyond the texture (texture-adjusted test).", "",
               "| rank | variable | level | kind | effect (mu) | cv gain | p | p adj | significant | group |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for c in clist[:top_n]:
-        lines.append(f"| {c['rank']} | {c['variable']} | {c['level']} | {c['kind']} | {c['effect']:.4f} | "
+        kind = c["kind"] + ("*" if c.get("texture_pcs", -1) >= 0 else "")
+        lines.append(f"| {c['rank']} | {c['variable']} | {c['level']} | {kind} | {c['effect']:.4f} | "
                      f"{c['cv_gain']:.3f} | {c['p_value']:.2g} | {c['p_adjusted']:.2g} | {c['significant']} | "
                      f"{_fmt_group(c['group'])} |")
     if figures:

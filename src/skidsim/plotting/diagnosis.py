@@ -67,6 +67,29 @@ def plot_residuals_vs_variable(residuals: pd.DataFrame, covariates: pd.DataFrame
     return Path(path)
 
 
+def plot_added_variable(av: pd.DataFrame, cause: dict, path) -> Path:
+    """Added-variable plot of a texture-adjusted cause (``skidsim.diagnosis.added_variable``): measured site mean
+    (mu) or speed slope (mu per 10 km/h) against the covariate, both net of the texture PCs; the least-squares
+    line's slope is the partial effect."""
+    x = av["covariate_adj"].to_numpy(float)
+    y = av["measured_adj"].to_numpy(float)
+    what = "site mean (mu)" if cause["kind"] == "main" else "speed slope (mu per 10 km/h)"
+    with figure(path, figsize=(6.0, 4.0)) as (fig, ax):
+        ax.scatter(x, y, color=COLORS["ours"], s=18)
+        if len(x) > 2 and np.ptp(x) > 0:
+            c = np.polyfit(x, y, 1)
+            xs = np.linspace(x.min(), x.max(), 20)
+            ax.plot(xs, np.polyval(c, xs), color=COLORS["study"], lw=1.2,
+                    label=f"partial slope {c[0]:.3g} per unit")
+            ax.legend()
+        ax.axhline(0, color="k", lw=0.8)
+        k = cause["texture_pcs"]
+        ax.set_xlabel(f"{cause['variable']} net of {k} texture PCs")
+        ax.set_ylabel(f"measured {what} net of texture")
+        ax.set_title(f"between sites: {cause['variable']} beyond texture ({cause['kind']})")
+    return Path(path)
+
+
 def plot_residuals_by_speed(residuals: pd.DataFrame, path) -> Path:
     """Residual (mu) against speed (km/h) for each level, points coloured by kind."""
     levels = [lv for lv in ("within-site", "between-site") if (residuals["level"] == lv).any()]
@@ -118,6 +141,10 @@ def diagnosis_figures(result, out_dir) -> dict:
         c = result.named.as_dict()
         figs[f"Residuals against the named variable {c['variable']}"] = plot_residuals_vs_variable(
             result.residuals, result.covariates, c, out / "residuals_vs_cause.png")
+        av = getattr(result, "added_variable", None)
+        if av is not None and len(av):
+            figs[f"Measured friction against {c['variable']}, both net of the texture (added-variable plot)"] = \
+                plot_added_variable(av, c, out / "added_variable.png")
     if len(result.predictions):
         figs["Measured against model before and after the extension (held-out data)"] = plot_before_after(
             result.predictions, out / "before_after.png")
