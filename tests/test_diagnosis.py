@@ -192,12 +192,18 @@ def test_texture_adjustment_picks_the_texture_dimension():
     sec = np.repeat([f"S{k}" for k in range(12)], 3)
     scores = rng.normal(size=(n, 8)) * np.linspace(3, 0.5, 8)
     M = 0.5 + 0.04 * scores[:, [0]] - 0.03 * scores[:, [1]] + rng.normal(0, 0.002, size=(n, 5))
-    k, N = dg.texture_adjustment(M, scores, sec)
-    assert k == 2
+    k, N, k_cv = dg.texture_adjustment(M, scores, sec, variance_share=0.5)
+    assert k == k_cv == 2
     assert np.allclose(N, np.c_[np.ones(n), scores[:, :2]])
     # pure noise: nothing to adjust for beyond the mean (k small), never more than the cap
-    k0, _ = dg.texture_adjustment(rng.normal(size=(n, 5)), scores, sec)
-    assert k0 <= 1 and dg.texture_adjustment(M, scores, sec, k_max=1)[0] == 1
+    k0, _, k0_cv = dg.texture_adjustment(rng.normal(size=(n, 5)), scores, sec, variance_share=0.5)
+    assert k0_cv <= 1 and dg.texture_adjustment(M, scores, sec, k_max=1)[0] == 1
+    # the texture-variance floor: 90 % of this texture's variance needs more than 2 PCs, so the test conditions
+    # on them although CV would stop at 2; never beyond the cap
+    var = scores.var(axis=0)
+    k90 = int(np.searchsorted(np.cumsum(var) / var.sum(), 0.9) + 1)
+    assert k90 > 2 and dg.texture_adjustment(M, scores, sec) == (k90, *dg.texture_adjustment(M, scores, sec)[1:])
+    assert dg.texture_adjustment(M, scores, sec)[0] == k90 and dg.texture_adjustment(M, scores, sec)[2] == 2
 
 
 def test_texture_adjusted_statistic_is_the_partial_sum_of_squares():
@@ -250,7 +256,7 @@ def test_texture_adjusted_test_recovers_an_effect_the_texture_model_absorbed():
     assert own["gain_excludes_zero"] and own["rmse_after"] < own["rmse_before"], own
     generic = own if r.gain["extension"] == "CovariateTerm" else \
         next(a["scopes"]["held_out_sites"] for a in r.gain["alternatives"] if a["extension"] == "CovariateTerm")
-    assert generic["extension"]["settings"]["texture_pcs"] == top.texture_pcs
+    assert generic["extension"]["settings"]["texture_pcs"] == top.texture_pcs_cv
     assert generic["gain_excludes_zero"] and generic["over_texture_refit"]["rmse_gain_ci"][0] > 0
     # the added-variable data recover the true partial effect, -0.006 mu per K (Frisch-Waugh slope)
     av = r.added_variable

@@ -160,7 +160,8 @@ class Cause:
     max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster);
     ``texture_pcs``: for a between-site sites.csv covariate that varies within sections, the number of texture
     principal components its test is conditioned on (the texture-adjusted test, :func:`texture_adjustment`);
-    -1 for the residual test.
+    -1 for the residual test; ``texture_pcs_cv``: the leading PCs of the best predictive texture model (leave-one-
+    section-out), against which ``cv_gain`` and the texture-refit extension are computed.
     """
 
     variable: str
@@ -185,6 +186,7 @@ class Cause:
     unit: str = ""
     unit_p: float = float("nan")
     texture_pcs: int = -1
+    texture_pcs_cv: int = -1
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -296,8 +298,8 @@ def texture_scores(cov: pd.DataFrame, info: dict) -> np.ndarray:
 
 
 def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray, k_max: int | None = None,
-                       variance_share: float = 0.9) -> tuple[int, np.ndarray]:
-    """Nuisance design of the texture-adjusted between-site tests: ``(k, N)`` with ``N = [1, scores[:, :k]]``.
+                       variance_share: float = 0.9) -> tuple[int, np.ndarray, int]:
+    """Nuisance design of the texture-adjusted between-site tests: ``(k, N, k_cv)`` with ``N = [1, scores[:, :k]]``.
 
     ``M`` (n_sites, n_bins): measured friction (mu) per site and speed bin. ``k`` is the larger of (a) the number of
     leading PCs that minimises the leave-one-section-out SSE of the least-squares fit of ``M`` on
@@ -306,7 +308,9 @@ def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray, 
     under-adjustment: a covariate's effect inflates the CV error of the texture-only fit, so (a) alone can stop
     before a texture direction the covariate correlates with, and the test would credit the covariate with that
     texture's effect; over-adjustment only costs power. No candidate enters the choice, so the permutation test
-    stays valid (docs/model-criticism.md, section 2, "Texture-adjusted tests").
+    stays valid (docs/model-criticism.md, section 2, "Texture-adjusted tests"). ``k_cv`` (a) alone is the best
+    predictive texture model: the candidates' ``cv_gain`` and the texture-refit extensions use it (a predictive
+    comparison is made against the best texture predictor, not an over-fitted one).
     """
     n = M.shape[0]
     folds = np.unique(sections, return_inverse=True)[1]
@@ -322,11 +326,12 @@ def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray, 
             sse += float(((M[te] - X[te] @ beta) ** 2).sum())
         if sse < best * (1 - 1e-12):
             best_k, best = k, sse
+    k = best_k
     var = scores.var(axis=0)
     if len(var) and var.sum() > 0:
         k_var = int(np.searchsorted(np.cumsum(var) / var.sum(), variance_share - 1e-12) + 1)
-        best_k = max(best_k, min(k_var, max(top, 0)))
-    return best_k, np.c_[np.ones(n), scores[:, :best_k]]
+        k = max(best_k, min(k_var, max(top, 0)))
+    return k, np.c_[np.ones(n), scores[:, :k]], best_k
 
 
 def _residualise(A: np.ndarray, N: np.ndarray) -> np.ndarray:
@@ -642,13 +647,13 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         # permutations: the reduced model's residuals move in the nested structure). A covariate that correlates
         # with texture by chance is thus neither credited with texture's effect nor absorbed by the texture model
         # (docs/model-criticism.md, section 2)
-        adj_k, N_adj, Ys_adj, Ys_cv = -1, None, {}, {}
+        adj_k, adj_kcv, N_adj, Ys_adj, Ys_cv = -1, -1, None, {}, {}
         adjusted = {c: False for c in C.columns}
         if level == "between-site" and measured_between is not None:
             scores = texture_scores(cov.loc[site_ids], info)
             if scores.shape[1] > 0:
                 M = measured_between
-                adj_k, N_adj = texture_adjustment(M, scores, sec)
+                adj_k, N_adj, adj_kcv = texture_adjustment(M, scores, sec)
                 DM = M - M.mean(axis=1, keepdims=True)
                 Ys_cv = {"main": (M.mean(axis=1) - M.mean())[:, None], "x_speed": DM - DM.mean(axis=0)}
                 Ys_adj = {kind: _residualise(Yc, N_adj) for kind, Yc in Ys_cv.items()}
@@ -675,7 +680,8 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                     nested = dtype == "categorical" and \
                         bool((pd.Series(sec).groupby(C[c].to_numpy()).nunique() == 1).all())
                     if adj:
-                        sse0, sse1 = _cv_sse(Ys_cv[kind], C[c], dtype, _folds(sec, nested), nuisance=N_adj[:, 1:])
+                        sse0, sse1 = _cv_sse(Ys_cv[kind], C[c], dtype, _folds(sec, nested),
+                                             nuisance=scores[:, :adj_kcv])
                     else:
                         sse0, sse1 = _cv_sse(Y, C[c], dtype, _folds(sec, nested))
                     direction = 0
@@ -687,7 +693,8 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                     tests.append(dict(variable=c, level=level, kind=kind, T=T[k], Tp=Tp[:, k], sse0=sse0,
                                       sse1=sse1, n=n, S=Y.shape[1], direction=direction, source=info[c][0],
                                       dtype=dtype, section_level=section_level[c],
-                                      texture_pcs=adj_k if adj else -1))
+                                      texture_pcs=adj_k if adj else -1,
+                                      texture_pcs_cv=adj_kcv if adj else -1))
         # functional form: mean residual shape over sites, random sign flips of whole sections' profiles.
         # Between sites the shape tested is the part the texture model adds to the within-site residual
         # (sim - pred per point, :func:`_texture_model_shape`): the rest is the within-site residual of the same
@@ -704,7 +711,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         sse0, sse1 = _cv_sse(Dff, None, "", _folds(sec, False))
         tests.append(dict(variable="functional_form", level=level, kind="functional_form", T=Tff, Tp=Tffp,
                           sse0=sse0, sse1=sse1, n=n, S=Dff.shape[1], direction=0, source="residual", dtype="",
-                          section_level=False, texture_pcs=-1))
+                          section_level=False, texture_pcs=-1, texture_pcs_cv=-1))
     # p-values; testing units (single candidates, or texture clusters tested by their max-statistic) in two
     # families, each with its own step-up FDR procedure at its share of fdr (FDR is subadditive over a partition
     # of the hypotheses, so the overall FDR over units is <= fdr); see docs/model-criticism.md
@@ -782,7 +789,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                             z=float(z), direction=t["direction"], source=t["source"], dtype=t["dtype"],
                             section_level=t["section_level"], n_sites=t["n"], n_permutations=P,
                             family=u["family"], unit=u["name"], unit_p=float(unit_p[unit_of[j]]),
-                            texture_pcs=int(t["texture_pcs"])))
+                            texture_pcs=int(t["texture_pcs"]), texture_pcs_cv=int(t["texture_pcs_cv"])))
     causes.sort(key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     # parsimony: section identity ranks below a significant coarser section-level grouping (e.g. mix) of the
     # same level and kind, whose evidence it contains
@@ -839,7 +846,7 @@ def apply_extension(cause: Cause, sites: pd.DataFrame, texture_wide: pd.DataFram
     """
     if cause.kind == "functional_form":
         return ExtendedModel(cause, SharedShape(speed_bin_kmh=speed_bin_kmh), None, ViscoelasticFE())
-    pcs = cause.texture_pcs if cause.dtype == "numeric" else -1
+    pcs = cause.texture_pcs_cv if cause.dtype == "numeric" else -1
     generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope", texture_pcs=pcs)
     cov, _ = site_covariates(sites, texture_wide)
     name = cause.variable.lower()
