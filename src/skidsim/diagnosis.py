@@ -436,15 +436,15 @@ def _cv_sse(Y: np.ndarray, values: pd.Series | None, dtype: str, folds: np.ndarr
         else:
             lab = values.to_numpy(str)
             Z = np.stack([lab == g for g in np.unique(lab)[1:]], axis=1).astype(float)
-        sse0 = sse1 = 0.0
+        X0 = np.c_[np.ones(len(Y)), nuisance]
+        sse = [0.0, 0.0]
         for f in np.unique(folds):
             te, tr = folds == f, folds != f
-            for X, acc in ((np.c_[np.ones(len(Y)), nuisance], 0), (np.c_[np.ones(len(Y)), nuisance, Z], 1)):
-                cols = np.abs(X[tr]).sum(axis=0) > 0
+            for j, X in enumerate((X0, np.c_[X0, Z])):
+                cols = np.abs(X[tr]).sum(axis=0) > 0  # a categorical level absent from training drops out
                 beta, *_ = np.linalg.lstsq(X[tr][:, cols], Y[tr], rcond=None)
-                e = float(((Y[te] - X[te][:, cols] @ beta) ** 2).sum())
-                sse0, sse1 = (sse0 + e, sse1) if acc == 0 else (sse0, sse1 + e)
-        return sse0, sse1
+                sse[j] += float(((Y[te] - X[te][:, cols] @ beta) ** 2).sum())
+        return sse[0], sse[1]
     sse0 = sse1 = 0.0
     for f in np.unique(folds):
         te, tr = folds == f, folds != f
@@ -642,7 +642,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         is_section_id = {c: section_level[c] and C[c].nunique() == n_sec for c in C.columns}
         bases = {c: _basis(C[c], info[c][1]) for c in C.columns}
         # texture-adjusted tests (between sites, sites.csv covariates that vary within sections): the measured
-        # curve is regressed on [1, k texture PCs] (k by leave-one-section-out CV, no candidate involved) and the
+        # curve is regressed on [1, k texture PCs] (texture_adjustment, no candidate involved) and the
         # candidate's part orthogonal to the texture is tested against the residuals (Freedman & Lane 1983
         # permutations: the reduced model's residuals move in the nested structure). A covariate that correlates
         # with texture by chance is thus neither credited with texture's effect nor absorbed by the texture model
@@ -920,15 +920,6 @@ def _site_mean(x: np.ndarray, i: np.ndarray, n_sites: int) -> np.ndarray:
     return (np.bincount(i, weights=x, minlength=n_sites) / np.maximum(np.bincount(i, minlength=n_sites), 1))[i]
 
 
-def _texture_partial(cov: pd.DataFrame, sites: list, z: np.ndarray, train: np.ndarray, k: int) -> np.ndarray:
-    """``z`` minus its least-squares prediction from ``[1, first k texture PC scores]`` fitted on the training
-    sites (the scores are the ``_tpc<j>`` columns that :func:`evaluate_extension` adds to the covariates)."""
-    S = cov.loc[sites, [f"_tpc{j}" for j in range(1, k + 1)]].to_numpy(float)
-    X = np.c_[np.ones(len(sites)), S]
-    c, *_ = np.linalg.lstsq(X[train], z[train], rcond=None)
-    return z - X @ c
-
-
 def _site_target(on: str, scope: _Scope, values: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """Per site of the scope: the mean of ``values`` over its rows (``on="level"``, mu) or their least-squares
     slope on the centred speed ``dv`` (``on="slope"``, mu per km/h)."""
@@ -939,7 +930,8 @@ def _site_target(on: str, scope: _Scope, values: np.ndarray, dv: np.ndarray) -> 
 
 
 def _refit_design(scope: _Scope, cov: pd.DataFrame, k: int, column: str | None) -> np.ndarray:
-    """Site design ``[1, PC_1..k]`` of the texture refit, plus the covariate ``column`` unless None."""
+    """Site design ``[1, PC_1..k]`` of the texture refit, plus the covariate ``column`` unless None (the PC scores
+    are the ``_tpc<j>`` columns that :func:`evaluate_extension` adds to the covariates)."""
     S = cov.loc[scope.sites, [f"_tpc{j}" for j in range(1, k + 1)]].to_numpy(float)
     cols = [np.ones(len(scope.sites)), S] + ([cov.loc[scope.sites, column].to_numpy(float)] if column else [])
     return np.column_stack(cols)
@@ -953,6 +945,14 @@ def _refit_correction(on: str, beta, X: np.ndarray, scope: _Scope, before: np.nd
     texture model's speed profile (level) is kept."""
     d = (X @ np.asarray(beta) - _site_target(on, scope, before, dv))[scope.row_site]
     return d if on == "level" else d * dv
+
+
+def _texture_partial(scope: _Scope, cov: pd.DataFrame, z: np.ndarray, train: np.ndarray, k: int) -> np.ndarray:
+    """``z`` (per site of the scope) minus its least-squares prediction from ``[1, PC_1..k]`` fitted on the
+    training sites."""
+    X = _refit_design(scope, cov, k, None)
+    c, *_ = np.linalg.lstsq(X[train], z[train], rcond=None)
+    return z - X @ c
 
 
 def texture_refit_reference(ext, scope: _Scope, cov: pd.DataFrame) -> np.ndarray:
@@ -1016,7 +1016,7 @@ def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, th
     if isinstance(ext, TemperatureShift):
         T = _site_values(cov, ext.column, scope.sites)
         if ext.texture_pcs >= 0 and not within:
-            T = float(T[train].mean()) + _texture_partial(cov, scope.sites, T, train, ext.texture_pcs)
+            T = float(T[train].mean()) + _texture_partial(scope, cov, T, train, ext.texture_pcs)
         anchor = float(T[train].mean())
         k = ext.speed_factor(T, anchor, float(theta[0]))
         bt = ext.vertical_factor(T, anchor, float(theta[1]) if len(theta) > 1 else None)
@@ -1085,7 +1085,7 @@ def recalibrate(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> dic
             raise InputError("sites table / texture table", f"column '{ext.name}'", column=ext.name)
         col = cov.loc[scope.sites, ext.name]
         if pd.api.types.is_numeric_dtype(col) and ext.texture_pcs >= 0 and scope.name == "held_out_sites":
-            # texture-adjusted term: partial slope of the measured site mean (or speed slope) on z given the PCs
+            # texture refit: [1, PCs, z] fitted to the training sites' measured site means (speed slopes)
             X = _refit_design(scope, cov, ext.texture_pcs, ext.name)
             beta, *_ = np.linalg.lstsq(X[train], _site_target(ext.on, scope, y, dv)[train], rcond=None)
             return {"numeric": True, "texture_pcs": ext.texture_pcs, "beta": beta.tolist()}

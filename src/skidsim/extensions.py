@@ -199,10 +199,11 @@ class CovariateTerm:
     term that leaves the site's mean level alone. Numeric z is centred on the training mean; a categorical
     covariate enters through group means (level) or group slopes (slope) fitted on the training sites; a level
     unseen in training gets the training-wide value. ``texture_pcs >= 0`` (a cause found by the texture-adjusted
-    test, numeric z, between sites): the term is ``gamma * z~_i`` with ``z~ = z - [1, PC_1..k] c`` the part of z
-    that the first ``texture_pcs`` texture principal components do not predict (c fitted on the training sites),
-    and ``gamma`` the partial slope of the measured site mean (level) or speed slope (slope) on z given the same
-    PCs: the texture model already carries the texture-predictable part of the effect, the term adds the rest."""
+    test, numeric z, between sites): a texture refit, not a residual term. The texture model has already taken part
+    of such an effect into its texture coefficients, so the prediction's site level (``on="level"``) or speed
+    slope (``on="slope"``) is replaced by that of the linear model ``[1, PC_1..k, z]`` fitted on the training
+    sites' measured site means (slopes), k = ``texture_pcs`` leading texture principal components; the texture
+    model's speed profile is kept (``skidsim.diagnosis._refit_correction``)."""
 
     name: str
     on: str = "level"
