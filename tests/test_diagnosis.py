@@ -202,6 +202,7 @@ def test_texture_adjustment_picks_the_texture_dimension():
     # on them although CV would stop at 2; never beyond the cap
     var = scores.var(axis=0)
     k90 = int(np.searchsorted(np.cumsum(var) / var.sum(), 0.9) + 1)
+    assert dg.texture_adjustment(M[:6], scores[:6], sec[:6])[0] == 0  # 2 sections: no PC can be held out
     k_t, N_t, k_cv = dg.texture_adjustment(M, scores, sec)
     assert k90 > 2 and k_t == min(k90, 10) and k_cv == 2 and N_t.shape == (n, 1 + k_t)
 
@@ -262,6 +263,11 @@ def test_texture_adjusted_test_recovers_an_effect_the_texture_model_absorbed():
     av = r.added_variable
     assert len(av) == n and np.polyfit(av["covariate_adj"], av["measured_adj"], 1)[0] == pytest.approx(-0.006,
                                                                                                       abs=0.0015)
+    # two sections leave no texture PC to condition on: the residual test is kept
+    few = sites["site"].iloc[:6]
+    small = dg.screen_candidates(r.residuals[r.residuals["site"].isin(few)], sites.iloc[:6], wide.iloc[:6],
+                                 seed=1)
+    assert all(c.texture_pcs == -1 for c in small)
     plain = dg.screen_candidates(r.residuals, sites, wide, seed=1, adjust_texture=False)
     t_plain = next(c for c in plain if c.variable == "temperature_c" and c.kind == "main")
     assert t_plain.texture_pcs == -1 and t_plain.p_value > top.p_value

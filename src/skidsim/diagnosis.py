@@ -654,6 +654,9 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
             if scores.shape[1] > 0:
                 M = measured_between
                 adj_k, N_adj, adj_kcv = texture_adjustment(M, scores, sec)
+            if adj_k < 1:  # too few sections to condition on any texture PC: keep the residual test
+                adj_k, adj_kcv, N_adj = -1, -1, None
+            else:
                 DM = M - M.mean(axis=1, keepdims=True)
                 Ys_cv = {"main": (M.mean(axis=1) - M.mean())[:, None], "x_speed": DM - DM.mean(axis=0)}
                 Ys_adj = {kind: _residualise(Yc, N_adj) for kind, Yc in Ys_cv.items()}
