@@ -141,10 +141,9 @@ def diagnosis_figures(result, out_dir) -> dict:
         c = result.named.as_dict()
         figs[f"Residuals against the named variable {c['variable']}"] = plot_residuals_vs_variable(
             result.residuals, result.covariates, c, out / "residuals_vs_cause.png")
-        av = getattr(result, "added_variable", None)
-        if av is not None and len(av):
+        if len(result.added_variable):
             figs[f"Measured friction against {c['variable']}, both net of the texture (added-variable plot)"] = \
-                plot_added_variable(av, c, out / "added_variable.png")
+                plot_added_variable(result.added_variable, c, out / "added_variable.png")
     if len(result.predictions):
         figs["Measured against model before and after the extension (held-out data)"] = plot_before_after(
             result.predictions, out / "before_after.png")
