@@ -17,11 +17,12 @@ from scipy.optimize import curve_fit
 SPEEDS_CAL_KMH = (20.0, 40.0, 60.0)
 SPEEDS_VAL_KMH = (30.0, 50.0, 70.0)
 SIM_SPEEDS_KMH = np.arange(10.0, 95.0, 5.0)
-EFFECTS = (None, "temperature", "drainage", "wear", "mix")
+EFFECTS = (None, "temperature", "drainage", "squeeze", "wear", "mix")
 #: truth constants of the hidden effects
 WLF_TR_C = -40.0
 T_ANCHOR_C = 16.0
 DRAIN_KAPPA = 0.5
+SQUEEZE_KAPPA = 0.3  # partial hydroplaning: x (1 - kappa (v^2 - 20^2) / Sp^2), as skidsim.truth's "squeeze" form
 WEAR_LOSS = 0.20
 #: principal components kept by the texture model: all 11 (= least squares on every texture parameter, an
 #: unbiased model, so the null campaign is a true null; fewer components leave section-structured texture out)
@@ -97,6 +98,8 @@ def generate_campaign(seed: int, effect: str | None = None, *, n_sections: int =
             mu = _law(v, mu_s[i], mu_k[i], alpha[i])
         if effect == "drainage":
             mu = mu * np.exp(-DRAIN_KAPPA * (v - 20.0) / sp[i])
+        elif effect == "squeeze":
+            mu = mu * np.maximum(0.05, 1.0 - SQUEEZE_KAPPA * (v * v - 400.0) / sp[i] ** 2)
         elif effect == "wear":
             mu = mu * (1.0 - WEAR_LOSS * (order[i] - 1) / (n - 1))
         elif effect == "mix":
@@ -115,7 +118,7 @@ def generate_campaign(seed: int, effect: str | None = None, *, n_sections: int =
             rows += [(site[i], float(v), float(m), kind) for v, m in zip(vs, y)]
     measured = pd.DataFrame(rows, columns=["site", "speed_kmh", "mu", "kind"])
     truth = {"effect": effect, "variable": {None: None, "temperature": "temperature_c", "drainage": "mpd_mm",
-                                            "wear": "test_order", "mix": "mix"}[effect]}
+                                            "squeeze": "mpd_mm", "wear": "test_order", "mix": "mix"}[effect]}
     return sites, measured, tex, truth
 
 

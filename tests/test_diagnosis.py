@@ -226,6 +226,49 @@ def test_texture_adjusted_statistic_is_the_partial_sum_of_squares():
     assert dg._adjusted_basis(dg._basis(pd.Series(S[:, 1] * 2 + 1), "numeric"), N).shape[1] == 0
 
 
+def _within_rows(amp, rng, speeds=np.arange(20.0, 71.0, 5.0), noise=0.002):
+    """Within-site residual rows: site i's residual is amp_i * shape(v) plus white noise (mu)."""
+    shape = 0.01 * (1.0 - ((speeds - 45.0) / 25.0) ** 2) - 0.01 * (speeds > 60) * (speeds - 60.0) / 10.0
+    rows = [(f"s{i}", "trace", v, a * h + noise * rng.normal()) for i, a in enumerate(amp)
+            for v, h in zip(speeds, shape)]
+    r = pd.DataFrame(rows, columns=["site", "kind", "speed_kmh", "residual"])
+    return r.assign(level="within-site", measured=0.5 + r["residual"], model=0.5)
+
+
+def test_within_site_shape_amplitude_follows_inverse_speed_constant():
+    """A residual shape shared by all sites whose amplitude follows the IFI 1/Sp(MPD) (drainage): MPD x speed is
+    tested on the shape's amplitude (one degree of freedom), is significant, and ranks above the functional form
+    (the shared shape is its mean); with amplitudes unrelated to MPD the functional form alone is named; the
+    statistic equals the squared projection computed directly."""
+    rng = np.random.default_rng(3)
+    n = 36
+    sites = pd.DataFrame({"site": [f"s{i}" for i in range(n)], "section": np.repeat([f"S{k}" for k in range(12)], 3),
+                          "temperature_c": rng.uniform(10, 20, n)})
+    mpd = rng.uniform(0.45, 1.45, n)
+    tex = pd.DataFrame({"site": sites["site"], "profile_MPD": mpd, "other": rng.normal(size=n)})
+    inv_sp = 1.0 / (14.2 + 89.7 * mpd)
+    amp = inv_sp / inv_sp.mean()  # mean 1: the shared shape, modulated by drainage
+    res = _within_rows(amp, rng)
+    causes = dg.screen_candidates(res, sites, tex, seed=0)
+    top = causes[0]
+    assert (top.variable, top.level, top.kind, top.significant) == ("profile_MPD", "within-site", "x_speed", True)
+    assert top.family == "primary" and top.direction == -1  # deeper texture, weaker shape error
+    ff = next(c for c in causes if c.kind == "functional_form")
+    assert ff.significant and causes.index(ff) == 1
+    # the statistic: squared projection of the shapes' amplitudes (on the unit mean shape) on the centred 1/Sp
+    ids, bins, R = dg._residual_matrix(res, 10.0)
+    D = R - R.mean(axis=1, keepdims=True)
+    f = D.mean(axis=0)
+    a = (D - f) @ (f / np.linalg.norm(f))
+    z = pd.Series(inv_sp, index=sites["site"]).loc[ids].to_numpy()
+    z = (z - z.mean()) / np.linalg.norm(z - z.mean())
+    assert top.statistic == pytest.approx(float(z @ a) ** 2, rel=1e-9)
+    # amplitudes unrelated to MPD: the shared shape is the cause
+    causes0 = dg.screen_candidates(_within_rows(rng.permutation(amp), np.random.default_rng(4)), sites, tex, seed=0)
+    assert causes0[0].kind == "functional_form" and causes0[0].significant
+    assert not next(c for c in causes0 if c.variable == "profile_MPD").significant
+
+
 def test_texture_adjusted_test_recovers_an_effect_the_texture_model_absorbed():
     """Temperature correlates with texture; the texture model (fitted on curves that carry the temperature effect)
     absorbs most of it, so the residual test is weak. Conditioning on texture names temperature, and its
@@ -273,7 +316,7 @@ def test_texture_adjusted_test_recovers_an_effect_the_texture_model_absorbed():
     assert t_plain.texture_pcs == -1 and t_plain.p_value > top.p_value
 
 
-@pytest.mark.parametrize("effect", ["temperature", "drainage", "wear", "mix"])
+@pytest.mark.parametrize("effect", ["temperature", "drainage", "squeeze", "wear", "mix"])
 def test_hidden_effect_is_named_and_extension_gains(tmp_path, effect):
     tables, truth = _campaign_dir(tmp_path, 0, effect)
     r = _diagnose(tables, seed=0, n_boot=400)
@@ -291,7 +334,7 @@ def test_hidden_effect_is_named_and_extension_gains(tmp_path, effect):
     # and beyond a campaign-wide level offset of the texture model: the named variable itself carries the gain
     assert own["over_shared_level"]["rmse_gain_ci"][0] > 0
     # the physical extension is used where one exists
-    expected = {"temperature": "TemperatureShift", "drainage": "DrainageIFI"}.get(effect)
+    expected = {"temperature": "TemperatureShift", "drainage": "DrainageIFI", "squeeze": "DrainageIFI"}.get(effect)
     if expected is not None:
         assert expected in [r.gain["extension"]] + [a["extension"] for a in r.gain["alternatives"]]
 

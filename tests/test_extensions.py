@@ -36,7 +36,7 @@ def test_temperature_shift_anchor_and_monotone():
 def test_ifi_speed_constant_and_multiplier():
     assert ifi_speed_constant_kmh(1.0) == pytest.approx(103.9)
     assert ifi_speed_constant_kmh(np.array([0.0, 0.5])) == pytest.approx([14.2, 14.2 + 44.85])
-    ext = DrainageIFI()
+    ext = DrainageIFI(form="ifi")
     inv = ext.inverse_speed_constant(0.8)
     assert ext.multiplier(60.0, inv, 1.0) == pytest.approx(1.0)
     # IFI: F(S) = F60 exp((60 - S)/Sp)
@@ -83,7 +83,19 @@ def test_covariate_term_rejects_unknown_target():
         CovariateTerm("x", on="curvature")
 
 
-def _scope_tables(kappa=None, t_shift=False, n_sec=8, per=3, seed=0):
+def test_squeeze_multiplier_and_bad_form():
+    ext = DrainageIFI(form="squeeze")
+    inv = ext.inverse_speed_constant(0.8)
+    assert ext.multiplier(0.0, inv, 0.3) == pytest.approx(1.0)
+    assert ext.multiplier(60.0, inv, 0.3) == pytest.approx(1.0 - 0.3 * 3600.0 * inv ** 2)
+    assert ext.multiplier(500.0, inv, 0.3) == pytest.approx(ext.floor)
+    with pytest.raises(ConfigError, match="form"):
+        DrainageIFI(form="hydro")
+    with pytest.raises(ConfigError, match="not a curve"):
+        DrainageIFI().multiplier(60.0, inv, 1.0)  # "auto" chooses a form when fitted; it has no curve itself
+
+
+def _scope_tables(kappa=None, t_shift=False, n_sec=8, per=3, seed=0, form="ifi"):
     """Noise-free tables: within-site rows with a drainage factor, or between-site predictions vs a WLF truth."""
     rng = np.random.default_rng(seed)
     n = n_sec * per
@@ -98,7 +110,9 @@ def _scope_tables(kappa=None, t_shift=False, n_sec=8, per=3, seed=0):
         for kind, vs in (("calibration", (20.0, 40.0, 60.0)), ("validation", (30.0, 50.0, 70.0, 80.0))):
             for v in vs:
                 base = exp_curve(v, b[i], c[i], a[i])
-                if kappa is not None:
+                if kappa is not None and form == "squeeze":
+                    meas = base * (1.0 - kappa * (v * v - 400.0) / (14.2 + 89.7 * mpd[i]) ** 2)
+                elif kappa is not None:
                     meas = base * np.exp(-kappa * (v - 20.0) / (14.2 + 89.7 * mpd[i]))
                 else:
                     k = TemperatureShift().speed_factor(sites["temperature_c"][i], 16.0, -40.0)
@@ -108,8 +122,11 @@ def _scope_tables(kappa=None, t_shift=False, n_sec=8, per=3, seed=0):
     return sites, tex, t
 
 
-def test_recalibrate_drainage_recovers_kappa_within_site():
-    sites, tex, t = _scope_tables(kappa=0.8)
+@pytest.mark.parametrize("form,kappa", [("ifi", 0.8), ("squeeze", 0.3)])
+def test_recalibrate_drainage_recovers_kappa_within_site(form, kappa):
+    """form "auto" fits both curve forms on the training sites and keeps the one with the smaller training error:
+    the true form and its kappa come back, and the held-out speeds are recovered."""
+    sites, tex, t = _scope_tables(kappa=kappa, form=form)
     # the calibrated simulation: plain exponential through the measured calibration points
     cal = t[t["kind"] == "calibration"].sort_values(["site", "speed_kmh"])
     v3 = cal["speed_kmh"].to_numpy().reshape(-1, 3)
@@ -122,7 +139,10 @@ def test_recalibrate_drainage_recovers_kappa_within_site():
     sc = dg._make_scope(res, "within-site")
     train = np.ones(len(sc.sites), bool)
     p = dg.recalibrate(DrainageIFI(mpd_column="mpd_mm"), sc, cov, train)
-    assert p["kappa"] == pytest.approx(0.8, abs=0.02)
+    assert p["form"] == form
+    # (the squeeze truth is 1 at 20 km/h, the extension at 0 km/h: a per-site factor 1 + 400 kappa / Sp^2 <= 1.04
+    # that the refitted law absorbs only in part)
+    assert p["kappa"] == pytest.approx(kappa, rel=0.025 if form == "ifi" else 0.08)
     after = dg.predict_extended(DrainageIFI(mpd_column="mpd_mm"), p, sc, cov, train)
     before_err = np.abs(sc.rows["measured"] - sc.rows["before"]).max()
     assert before_err > 1e-3  # the plain law misses the drainage shape at held-out speeds ...

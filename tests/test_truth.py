@@ -126,6 +126,28 @@ def test_drainage_effect_follows_ifi_speed_constant():
     assert ratio(hi) > ratio(lo)
 
 
+def test_squeeze_drainage_is_quadratic_in_speed_and_floored():
+    """form "squeeze": 1 - size (v^2 - v_ref^2) / Sp^2, floored; an unknown form is refused."""
+    cfg = cfg_with(drainage={"size": 0.3, "form": "squeeze"})
+    v = np.array([5.0, 20.0, 40.0, 70.0])
+    for mpd in (0.5, 1.4):
+        d = DESC | {"mpd_mm": mpd}
+        on = T.site_truth(d, ROW, cfg)
+        off = T.site_truth(d, ROW, cfg_with())
+        sp = 14.2 + 89.7 * mpd
+        expected = 1.0 - 0.3 * (v ** 2 - 400.0) / sp ** 2
+        assert np.allclose(T.mu_true(v, on) / T.mu_true(v, off), expected, rtol=1e-12)
+    # the loss accelerates with speed (concave), unlike the exponential-decay law
+    f = T.drainage_factor(np.array([20.0, 45.0, 70.0]), {"sp_kmh": 60.0, "size": 0.3, "v_ref_kmh": 20.0,
+                                                          "form": "squeeze", "floor": 0.05})
+    assert f[0] - f[1] < f[1] - f[2]
+    low = T.drainage_factor(300.0, {"sp_kmh": 60.0, "size": 0.3, "v_ref_kmh": 20.0, "form": "squeeze",
+                                    "floor": 0.05})
+    assert low == pytest.approx(0.05)
+    with pytest.raises(ConfigError, match="drainage.form"):
+        T.check_truth_config({"effects": {"drainage": {"form": "hydro"}}})
+
+
 def test_metadata_and_section_effects():
     cfg = cfg_with(metadata={"column": "test_order", "size": -0.004}, section={"offsets": {"E6": 0.05}})
     first = T.site_truth(DESC, ROW, cfg)

@@ -33,7 +33,7 @@ import json
 import math
 import os
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -42,8 +42,8 @@ from scipy.optimize import minimize, minimize_scalar
 
 from .errors import ConfigError, InputError
 from .runlog import atomic_path, write_parquet
-from .extensions import (CovariateTerm, DrainageIFI, SharedShape, TemperatureShift, ViscoelasticFE,
-                         exp_curve, fit_exp_curves)
+from .extensions import (DRAINAGE_FORMS, CovariateTerm, DrainageIFI, SharedShape, TemperatureShift,
+                         ViscoelasticFE, exp_curve, fit_exp_curves, ifi_speed_constant_kmh)
 
 LEVELS = ("within-site", "between-site")
 KINDS = ("calibration", "validation", "trace")
@@ -297,6 +297,35 @@ def texture_scores(cov: pd.DataFrame, info: dict) -> np.ndarray:
     return U[:, keep] * S[keep]
 
 
+def between_site_texture_scores(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide: pd.DataFrame | None,
+                                speed_bin_kmh: float = 10.0, exclude=DEFAULT_EXCLUDE) -> pd.DataFrame | None:
+    """Texture PC scores (:func:`texture_scores`) standardised over the sites the between-site tests use (every
+    speed bin observed), as a table indexed by site with columns ``_tpc1, _tpc2, ...``; None without between-site
+    residuals at 4 sites or without texture columns. :func:`diagnose` computes it once and hands it to the
+    screening, the added-variable data and the texture-refit extensions, so that all three condition on the same
+    PCs."""
+    res = residuals[residuals["level"] == "between-site"]
+    if res["site"].nunique() < 4:
+        return None
+    try:
+        ids, _, _ = _residual_matrix(res.assign(site=res["site"].astype(str)), speed_bin_kmh)
+    except InputError:
+        return None
+    cov, info = site_covariates(sites, texture_wide, exclude=exclude)
+    ids = [s for s in ids if s in cov.index]
+    sc = texture_scores(cov.loc[ids], info)
+    if sc.shape[1] == 0:
+        return None
+    return pd.DataFrame(sc, index=ids, columns=[f"_tpc{j}" for j in range(1, sc.shape[1] + 1)])
+
+
+def _scores_for(ids, table: pd.DataFrame | None, cov: pd.DataFrame, info: dict) -> np.ndarray:
+    """The PC scores of ``ids`` from ``table`` when it holds exactly those sites, else computed over ``ids``."""
+    if table is not None and set(table.index) == set(ids):
+        return table.loc[list(ids)].to_numpy(float)
+    return texture_scores(cov.loc[list(ids)], info)
+
+
 def texture_adjustment(M: np.ndarray, scores: np.ndarray, sections: np.ndarray, k_max: int | None = None,
                        variance_share: float = 0.9) -> tuple[int, np.ndarray, int]:
     """Nuisance design of the texture-adjusted between-site tests: ``(k, N, k_cv)`` with ``N = [1, scores[:, :k]]``.
@@ -536,12 +565,18 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                       corr_group: float = 0.9, speed_bin_kmh: float = 10.0, fdr_method: str = "bh",
                       min_cv_gain: float = 0.0, exclude=DEFAULT_EXCLUDE, cluster_rho: float = 0.8,
                       primary_share: float = 0.5, temperature_column: str | None = None,
-                      mpd_column: str | None = None, adjust_texture: bool = True) -> list[Cause]:
+                      mpd_column: str | None = None, adjust_texture: bool = True,
+                      texture_pc_scores: pd.DataFrame | None = None) -> list[Cause]:
     """Screen every candidate cause at every level; returns causes ranked by evidence.
 
-    Ranking: significant causes first (statistical evidence decides whether a cause is named), among them by
-    ``cv_msr`` (cross-validated explained residual mean square, mu^2: predictive evidence); section identity
-    goes below a significant coarser section-level grouping of the same level and kind (parsimony); the rest by
+    Ranking: significant causes first (statistical evidence decides whether a cause is named), those of the
+    primary family (the pre-specified mechanisms that have a physical extension) before the secondary ones (a
+    mechanism's footprint on correlated texture clusters, e.g. drainage's level misfit on a macrotexture cluster,
+    ranks after the mechanism), within each by ``cv_msr`` (cross-validated explained residual mean square, mu^2:
+    predictive evidence); section identity
+    goes below a significant coarser section-level grouping of the same level and kind (parsimony); the within-site
+    functional form goes below a significant within-site covariate x speed (the covariate explains how the shared
+    shape varies between sites, and its model nests the shared shape); the rest by
     ``p_adjusted`` and ``z``. ``n_permutations=None`` uses :func:`auto_permutations` for the larger family size
     divided by its share of ``fdr``. Residuals are averaged per site and speed bin (``speed_bin_kmh``); only bins
     observed at every site of a level are used. The between-site functional form tests the mean over sites of
@@ -564,7 +599,8 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     those PCs is tested against the residuals with the same nested permutations (Freedman & Lane 1983); its
     ``cv_gain`` compares ``[1, PCs]`` with ``[1, PCs, candidate]`` out of section. Section-level covariates and
     section identity keep the residual test (12 sections leave too few units to condition on k PCs). Needs the
-    ``measured`` column of the residual table.
+    ``measured`` column of the residual table. ``texture_pc_scores`` (:func:`between_site_texture_scores`) supplies
+    the PC scores; without it they are computed here, identically.
     """
     _require(residuals, ("site", "level", "speed_kmh", "residual"), "residuals")
     if not 0 < fdr < 1:
@@ -625,6 +661,8 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         C = cov.loc[site_ids]
         sec = section_of.loc[site_ids].to_numpy()
         n, S = R.shape
+        amp_col = mpd_col if (level == "within-site" and mpd_col is not None and mpd_col in C.columns
+                              and info[mpd_col][1] == "numeric") else None
         m = R.mean(axis=1)
         D = R - m[:, None]
         Ys = {"x_speed": D - D.mean(axis=0)}
@@ -650,7 +688,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         adj_k, adj_kcv, N_adj, Ys_adj, Ys_cv = -1, -1, None, {}, {}
         adjusted = {c: False for c in C.columns}
         if level == "between-site" and measured_between is not None:
-            scores = texture_scores(cov.loc[site_ids], info)
+            scores = _scores_for(site_ids, texture_pc_scores, cov, info)
             if scores.shape[1] > 0:
                 M = measured_between
                 adj_k, N_adj, adj_kcv = texture_adjustment(M, scores, sec)
@@ -669,7 +707,8 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                     continue
                 Y = Ys_adj[kind] if adj else Y0
                 bk = {c: (_adjusted_basis(bases[c], N_adj) if adj else bases[c]) for c in C.columns
-                      if is_section_id[c] == is_id and adjusted[c] == adj and bases[c].shape[1] > 0}
+                      if is_section_id[c] == is_id and adjusted[c] == adj and bases[c].shape[1] > 0
+                      and not (c == amp_col and kind == "x_speed")}
                 names = [c for c in bk if bk[c].shape[1] > 0]
                 if not names:
                     continue
@@ -698,6 +737,26 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                                       dtype=dtype, section_level=section_level[c],
                                       texture_pcs=adj_k if adj else -1,
                                       texture_pcs_cv=adj_kcv if adj else -1))
+        # MPD x speed within sites: the amplitude of the shared residual shape against the IFI's 1/Sp(MPD)
+        # (drainage changes how strongly the law's shape is wrong, not its form, in proportion to 1/Sp,
+        # Sp = 14.2 + 89.7 MPD km/h): Y projected on the unit mean shape, one degree of freedom instead of a free
+        # profile; the mean shape is invariant to permuting sites, so the nested permutations stay exact
+        # (docs/model-criticism.md, section 2)
+        if amp_col is not None and amp_col in C.columns:
+            f = D.mean(axis=0)
+            fn = float(np.linalg.norm(f))
+            Ya = (Ys["x_speed"] @ (f / fn))[:, None] if fn > 0 else np.zeros((n, 1))
+            inv_sp = pd.Series(1.0 / ifi_speed_constant_kmh(np.maximum(C[amp_col].to_numpy(float), 0.0)),
+                               index=C.index)
+            q = _basis(inv_sp, "numeric")
+            A = q.T @ Ya
+            Tp = _perm_stats(Ya, q, np.zeros(q.shape[1], dtype=int), 1, perm_nested)
+            sse0, sse1 = _cv_sse(Ya, inv_sp, "numeric", _folds(sec, False))
+            zc = C[amp_col].to_numpy(float) - C[amp_col].mean()
+            tests.append(dict(variable=amp_col, level=level, kind="x_speed", T=float((A * A).sum()), Tp=Tp[:, 0],
+                              sse0=sse0, sse1=sse1, n=n, S=1, direction=int(np.sign(zc @ Ya[:, 0])),
+                              source=info[amp_col][0], dtype="numeric", section_level=section_level[amp_col],
+                              texture_pcs=-1, texture_pcs_cv=-1))
         # functional form: mean residual shape over sites, random sign flips of whole sections' profiles.
         # Between sites the shape tested is the part the texture model adds to the within-site residual
         # (sim - pred per point, :func:`_texture_model_shape`): the rest is the within-site residual of the same
@@ -793,7 +852,8 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                             section_level=t["section_level"], n_sites=t["n"], n_permutations=P,
                             family=u["family"], unit=u["name"], unit_p=float(unit_p[unit_of[j]]),
                             texture_pcs=int(t["texture_pcs"]), texture_pcs_cv=int(t["texture_pcs_cv"])))
-    causes.sort(key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
+    causes.sort(key=lambda c: (not c.significant, c.significant and c.family != "primary",
+                               -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     # parsimony: section identity ranks below a significant coarser section-level grouping (e.g. mix) of the
     # same level and kind, whose evidence it contains
     n_sec_all = section_of.nunique()
@@ -814,6 +874,14 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                 causes.insert(below[0], causes.pop(k))
                 moved = True
                 break
+    # hierarchy of within-site shapes: where the functional form and a covariate x speed are both significant within
+    # sites, the shape's amplitude follows the covariate and the shared shape is its mean over the sites; the
+    # covariate names the mechanism (its model, shared profile + covariate x profile, nests the functional form's),
+    # so the functional form ranks right below the first such cause
+    ff = [k for k, c in enumerate(causes) if c.significant and c.kind == "functional_form" and c.level == "within-site"]
+    xs = [k for k, c in enumerate(causes) if c.significant and c.kind == "x_speed" and c.level == "within-site"]
+    if ff and xs and ff[0] < xs[0]:
+        causes.insert(xs[0], causes.pop(ff[0]))
     return causes
 
 
@@ -1038,8 +1106,12 @@ def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, th
             b1, c1, a1 = fit_exp_curves(scope.fit_v, scope.fit_y / M)
             return before + exp_curve(v, b1[i], c1[i], a1[i]) * ext.multiplier(v, inv_sp[i], float(theta[0])) \
                 - exp_curve(v, b0[i], c0[i], a0[i])
-        d = inv_sp - inv_sp[train].mean()
-        m = np.exp(-theta[0] * v * d[i])
+        if ext.form == "squeeze":  # relative to the training sites' mean 1/Sp^2 (the texture model carries it)
+            d2 = inv_sp ** 2 - (inv_sp[train] ** 2).mean()
+            m = np.maximum(ext.floor, 1.0 - theta[0] * v * v * d2[i])
+        else:
+            d = inv_sp - inv_sp[train].mean()
+            m = np.exp(-theta[0] * v * d[i])
         return before * m / _site_mean(m, i, len(scope.sites))
     raise ConfigError(f"not a physical extension: {type(ext).__name__}")
 
@@ -1047,8 +1119,10 @@ def _after_physical(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray, th
 def recalibrate(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> dict:
     """Fit the extension's parameters on the training sites (boolean mask over ``scope.sites``).
 
-    Physical extensions: TemperatureShift T_r (deg C); DrainageIFI kappa; minimising the training rows' squared
-    error (bounded scalar search; a coarse grid + bounded Powell if an extension has two parameters);
+    Physical extensions: TemperatureShift T_r (deg C); DrainageIFI kappa (and, for ``form="auto"``, the curve form
+    with the smaller training error); minimising the training rows' squared error (one parameter: a 41-point grid
+    over the bounds, then a bounded scalar search between the best point's neighbours; two: a coarse grid +
+    bounded Powell);
     within a site the law is refitted through the calibration points with the extension included. Generic terms:
     least squares / group means on the training residuals. Returns the fitted parameters (JSON-ready)."""
     rows_tr = train[scope.row_site]
@@ -1057,18 +1131,27 @@ def recalibrate(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> dic
         names, bounds = _physical_params(ext, scope, cov, train)
         if isinstance(ext, TemperatureShift) and scope.name == "held_out_speeds":
             return {"t_ref_c": float(ext.t_ref_c), "level_per_c": float(ext.level_per_c), "identifiable": False}
+        if isinstance(ext, DrainageIFI) and ext.form == "auto":
+            # each curve form fitted on the training data; the smaller training error wins (no held-out data)
+            fits = [dict(recalibrate(replace(ext, form=f), scope, cov, train), form=f) for f in DRAINAGE_FORMS]
+            for fit in fits:
+                fit["train_sse"] = _train_sse(replace(ext, form=fit["form"]), fit, scope, cov, train)
+            return min(fits, key=lambda fit: fit["train_sse"])
 
         def obj(th):
             a = _after_physical(ext, scope, cov, train, th)
             return float(np.sum((a[rows_tr] - y[rows_tr]) ** 2))
 
         if len(names) == 1:
+            # a grid over the bounds first (the squeeze form's objective is multimodal where the multiplier reaches
+            # its floor), then a bounded search between the best grid value's neighbours
             lo, hi = bounds[0]
-            r = minimize_scalar(obj, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3 * (hi - lo)})
-            th = [float(r.x)]
-            for edge in (lo, hi):  # the bounded search can miss an edge optimum
-                if obj([edge]) < obj(th):
-                    th = [float(edge)]
+            grid = np.linspace(lo, hi, 41)
+            vals = [obj([g]) for g in grid]
+            j = int(np.argmin(vals))
+            a, b = grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)]
+            r = minimize_scalar(obj, bounds=(a, b), method="bounded", options={"xatol": 1e-4 * (hi - lo)})
+            th = [float(r.x)] if r.fun <= vals[j] else [float(grid[j])]
         else:
             grids = np.meshgrid(*[np.linspace(lo, hi, 9) for lo, hi in bounds], indexing="ij")
             cand = np.stack([g.ravel() for g in grids], axis=1)
@@ -1111,8 +1194,17 @@ def recalibrate(ext, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> dic
     raise ConfigError(f"cannot recalibrate extension {type(ext).__name__}")
 
 
+def _train_sse(ext, params: dict, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> float:
+    """Squared error (mu^2) of the fitted extension over the training sites' rows."""
+    rows_tr = train[scope.row_site]
+    a = predict_extended(ext, params, scope, cov, train)
+    return float(np.sum((a[rows_tr] - scope.rows["measured"].to_numpy(float)[rows_tr]) ** 2))
+
+
 def predict_extended(ext, params: dict, scope: _Scope, cov: pd.DataFrame, train: np.ndarray) -> np.ndarray:
     """'after' values for every row of the scope with fitted ``params`` (use the rows of held-out sites)."""
+    if isinstance(ext, DrainageIFI) and "form" in params:
+        ext = replace(ext, form=params["form"])
     v = scope.rows["speed_kmh"].to_numpy(float)
     before = scope.rows["before"].to_numpy(float)
     if getattr(ext, "physical", False):
@@ -1251,7 +1343,8 @@ class DiagnosisResult:
 
 
 def added_variable(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide: pd.DataFrame | None, cause: Cause,
-                   speed_bin_kmh: float = 10.0, exclude=DEFAULT_EXCLUDE) -> pd.DataFrame:
+                   speed_bin_kmh: float = 10.0, exclude=DEFAULT_EXCLUDE,
+                   texture_pc_scores: pd.DataFrame | None = None) -> pd.DataFrame:
     """Added-variable (partial regression) data of a texture-adjusted cause: per site, the covariate and the
     measured site mean (``main``, mu) or speed slope (``x_speed``, mu per 10 km/h), both minus their least-squares
     fit on ``[1, first texture_pcs texture PCs]``. The slope of measured_adj on covariate_adj is the partial effect
@@ -1263,7 +1356,7 @@ def added_variable(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide: p
                                     speed_bin_kmh)
     cov, info = site_covariates(sites, texture_wide, exclude=exclude)
     C = cov.loc[ids]
-    N = np.c_[np.ones(len(ids)), texture_scores(C, info)[:, :cause.texture_pcs]]
+    N = np.c_[np.ones(len(ids)), _scores_for(ids, texture_pc_scores, cov, info)[:, :cause.texture_pcs]]
     sc = bins - bins.mean()
     y = M.mean(axis=1) if cause.kind == "main" else (M - M.mean(axis=1, keepdims=True)) @ sc / (sc @ sc) * 10.0
     return pd.DataFrame({"site": ids, "covariate_adj": _residualise(C[cause.variable].to_numpy(float), N),
@@ -1272,14 +1365,22 @@ def added_variable(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide: p
 
 def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.DataFrame,
                        texture_wide: pd.DataFrame | None = None, *, n_boot: int = 2000, seed: int = 0,
-                       ci: float = 0.95) -> tuple[dict, pd.DataFrame]:
+                       ci: float = 0.95, texture_pc_scores: pd.DataFrame | None = None) -> tuple[dict, pd.DataFrame]:
     """Cross-fit the extension (and its generic fallback) on held-out speeds and held-out sites, measure the gain.
 
     The primary extension is the physical one unless its RMSE-gain interval at the cause's level does not exclude 0
-    while the fallback's lower bound is higher ("no physical model fits"). Returns (gain dict, predictions)."""
+    while the fallback's lower bound is higher ("no physical model fits"). ``texture_pc_scores``: the PC scores of
+    the texture-adjusted test (:func:`between_site_texture_scores`) for the texture-refit terms. Returns (gain dict,
+    predictions)."""
     cov, info = site_covariates(sites, texture_wide)
-    sc = texture_scores(cov, info)
-    cov = cov.join(pd.DataFrame(sc, index=cov.index, columns=[f"_tpc{j}" for j in range(1, sc.shape[1] + 1)]))
+    # the texture-refit terms use the PCs the test conditioned on (texture_pc_scores, standardised over the
+    # between-site test's sites) where those cover every site of the held-out-site scope; else PCs over all sites
+    between = _make_scope(residuals, "between-site")
+    pcs = texture_pc_scores
+    if pcs is None or between is None or not set(between.sites) <= set(pcs.index):
+        sc = texture_scores(cov, info)
+        pcs = pd.DataFrame(sc, index=cov.index, columns=[f"_tpc{j}" for j in range(1, sc.shape[1] + 1)])
+    cov = cov.join(pcs)
     own = "held_out_speeds" if model.cause.level == "within-site" else "held_out_sites"
     results = []
     for ext in [model.extension] + ([model.fallback] if model.fallback is not None else []):
@@ -1330,16 +1431,18 @@ def diagnose(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFram
     """The whole diagnosis on campaign-level tables: residuals, screening, extension for the named cause,
     cross-fitted gain. With no named cause, ``gain`` holds the baseline RMSE/R^2 (after = before)."""
     res = build_residuals(sites, measured, simulated, predicted)
+    pcs = between_site_texture_scores(res, sites, texture_wide, speed_bin_kmh, exclude)  # one set of PCs for all
     causes = screen_candidates(res, sites, texture_wide, n_permutations=n_permutations, seed=seed, fdr=fdr,
                                corr_group=corr_group, speed_bin_kmh=speed_bin_kmh, fdr_method=fdr_method,
                                exclude=exclude, cluster_rho=cluster_rho, primary_share=primary_share,
                                temperature_column=temperature_column, mpd_column=mpd_column,
-                               adjust_texture=adjust_texture)
+                               adjust_texture=adjust_texture, texture_pc_scores=pcs)
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
     if top is not None:
         model = apply_extension(top, sites, texture_wide, speed_bin_kmh=speed_bin_kmh)
-        gain, preds = evaluate_extension(model, res, sites, texture_wide, n_boot=n_boot, seed=seed, ci=ci)
+        gain, preds = evaluate_extension(model, res, sites, texture_wide, n_boot=n_boot, seed=seed, ci=ci,
+                                         texture_pc_scores=pcs)
     else:
         scopes, frames = {}, []
         for level in LEVELS:
@@ -1352,7 +1455,8 @@ def diagnose(sites: pd.DataFrame, measured: pd.DataFrame, simulated: pd.DataFram
         gain = {"cause": None, "extension": None, "level": None, "scope": None, "scopes": scopes,
                 "fe_hook": None, "alternatives": [], "gain_excludes_zero": False}
         preds = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-    av = pd.DataFrame() if top is None else added_variable(res, sites, texture_wide, top, speed_bin_kmh, exclude)
+    av = pd.DataFrame() if top is None else added_variable(res, sites, texture_wide, top, speed_bin_kmh, exclude,
+                                                           texture_pc_scores=pcs)
     return DiagnosisResult(res, causes, top, gain, preds, cov, av)
 
 

@@ -16,7 +16,10 @@ See ``docs/model-criticism.md`` for the formulas, sources and conventions.
   multiplies the curve by ``exp(-kappa (v - v_ref) / Sp_i)`` (within a site, law refitted) or, for predictions of
   a texture model that already carries the level and the campaign-average drainage, by
   ``m_i(v) / mean_site(m_i)``, ``m_i(v) = exp(-kappa v (1/Sp_i - mean_train(1/Sp)))`` (shape only).
-  ``kappa`` (dimensionless, 1 = IFI) is fitted.
+  ``kappa`` (dimensionless, 1 = IFI) is fitted. ``form="squeeze"`` replaces the exponential by the
+  partial-hydroplaning (squeeze-film) loss ``max(floor, 1 - kappa v^2 / Sp^2)``, concave in speed, which
+  the exponential-decay law cannot absorb; ``form="auto"`` (default) fits both on the training data and keeps the
+  one with the smaller training error.
 * :class:`CovariateTerm` -- a generic linear term in a named covariate when no physical model fits: on the level
   (``+ b0 + b1 z_i``) or on the speed slope (``+ (c1 + b1 z_i)(v - v_mean,i)``); categoricals by group.
 * :class:`SharedShape` -- a residual shape shared by all sites (the functional form of mu(v) is wrong): an additive
@@ -40,6 +43,8 @@ from .friction import KMH_PER_MS
 #: Universal WLF constants (Williams, Landel & Ferry 1955).
 WLF_C1 = 8.86
 WLF_C2_K = 101.6
+#: Curve forms of :class:`DrainageIFI` ("auto" chooses between them on training data).
+DRAINAGE_FORMS = ("ifi", "squeeze")
 #: IFI speed constant coefficients, Sp = a + b * MPD (km/h, MPD in mm), ASTM E1960.
 IFI_SP_A_KMH = 14.2
 IFI_SP_B_KMH_PER_MM = 89.7
@@ -180,16 +185,34 @@ class DrainageIFI:
     v_ref_kmh: float = 60.0
     kappa: float = 1.0
     kappa_bounds: tuple[float, float] = (0.0, 5.0)
+    form: str = "auto"
+    floor: float = 0.05
     physical: bool = True
+
+    def __post_init__(self):
+        if self.form not in DRAINAGE_FORMS + ("auto",):
+            raise ConfigError(f"DrainageIFI.form: expected one of {list(DRAINAGE_FORMS) + ['auto']}, "
+                              f"got {self.form!r}")
 
     def inverse_speed_constant(self, mpd_mm):
         """1 / Sp in h/km."""
         return 1.0 / ifi_speed_constant_kmh(mpd_mm, self.a_kmh, self.b_kmh_per_mm)
 
-    def multiplier(self, speed_kmh, inv_sp_h_per_km, kappa: float | None = None):
-        """``exp(-kappa (v - v_ref) inv_sp)``; broadcasts speed (km/h) against 1/Sp (h/km)."""
+    def multiplier(self, speed_kmh, inv_sp_h_per_km, kappa: float | None = None, form: str | None = None):
+        """The drainage multiplier (dimensionless); broadcasts speed (km/h) against 1/Sp (h/km).
+
+        ``"ifi"``: ``exp(-kappa (v - v_ref) / Sp)``; ``"squeeze"``: ``max(floor, 1 - kappa v^2 / Sp^2)`` (no loss at
+        standstill; ``v_ref`` does not enter) (``form=None`` uses the extension's form; ``"auto"`` has none and
+        raises)."""
         k = self.kappa if kappa is None else kappa
-        return np.exp(-k * (np.asarray(speed_kmh, dtype=float) - self.v_ref_kmh) * np.asarray(inv_sp_h_per_km))
+        f = self.form if form is None else form
+        v = np.asarray(speed_kmh, dtype=float)
+        inv = np.asarray(inv_sp_h_per_km, dtype=float)
+        if f == "ifi":
+            return np.exp(-k * (v - self.v_ref_kmh) * inv)
+        if f == "squeeze":
+            return np.maximum(self.floor, 1.0 - k * v * v * inv * inv)
+        raise ConfigError(f"DrainageIFI.multiplier: form {f!r} is not a curve; expected one of {list(DRAINAGE_FORMS)}")
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,9 @@ fixed order (each step's contribution is recorded separately)::
     base(v)        = mu_k + (mu_s - mu_k) * exp(-alpha * s)                  (exponential-decay family)
     temperature    : base(a_T * v) * (1 + level_per_c * (T - T_ref))        (WLF shift of slip speed + level;
                      log10 a_T = size * WLF(T, T_ref), size 1 = the universal constants)
-    drainage       : * exp(-k_d * (v - v_ref) / Sp),  Sp = 14.2 + 89.7 MPD   (PIARC/IFI, ASTM E1960)
+    drainage       : * exp(-k_d * (v - v_ref) / Sp),  Sp = 14.2 + 89.7 MPD   (PIARC/IFI, ASTM E1960; form "ifi")
+                     or * max(floor, 1 - k_d * (v^2 - v_ref^2) / Sp^2)         (form "squeeze": partial
+                     hydroplaning, the water wedge's load share grows with the dynamic pressure ~ v^2)
     metadata       : * (1 + size * (x - x_ref))                             (e.g. slider wear by test_order)
     section        : + offset[section or mix]                                (unexplained level shift)
 
@@ -58,13 +60,17 @@ TRUTH_DEFAULTS: dict = {
     "effects": {
         "temperature": {"enabled": True, "size": 1.0, "t_ref_c": 15.8, "tg_c": -50.0, "c1": 8.86, "c2_k": 101.6,
                         "level_per_c": -0.005},
-        "drainage": {"enabled": True, "size": 0.4, "v_ref_kmh": 20.0, "sp_a_kmh": 14.2, "sp_b_kmh_per_mm": 89.7},
+        "drainage": {"enabled": True, "size": 0.4, "v_ref_kmh": 20.0, "sp_a_kmh": 14.2, "sp_b_kmh_per_mm": 89.7,
+                     "form": "ifi", "floor": 0.05},
         "metadata": {"enabled": False, "column": "test_order", "size": -0.004, "reference": 1.0},
         "section": {"enabled": False, "column": "section", "offsets": {"E6": 0.05}},
     },
 }
 
 EFFECT_ORDER = ("temperature", "drainage", "metadata", "section")
+#: Drainage forms: "ifi" (exponential in speed, inside what the study's law can absorb over 20-70 km/h) and
+#: "squeeze" (quadratic loss, concave in speed; docs/synthetic-campaign.md).
+DRAINAGE_FORMS = ("ifi", "squeeze")
 REPORT_SPEEDS_KMH = (5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0)
 
 
@@ -175,6 +181,9 @@ def check_truth_config(cfg: dict) -> dict:
                 raise ConfigError(f"truth.effects.{name}: unknown key {key!r}; expected one of "
                                   f"{sorted(out['effects'][name])}")
             out["effects"][name][key] = copy.deepcopy(val)
+    form = out["effects"]["drainage"]["form"]
+    if form not in DRAINAGE_FORMS:
+        raise ConfigError(f"truth.effects.drainage.form: expected one of {list(DRAINAGE_FORMS)}, got {form!r}")
     return out
 
 
@@ -225,7 +234,8 @@ def site_truth(descriptors: dict, row: dict, truth_cfg: dict | None = None) -> d
     d = eff_cfg["drainage"]
     sp = d["sp_a_kmh"] + d["sp_b_kmh_per_mm"] * descriptors["mpd_mm"]
     effects["drainage"] = {"enabled": bool(d["enabled"]), "sp_kmh": sp, "size": float(d["size"]),
-                           "v_ref_kmh": float(d["v_ref_kmh"]), "config": d}
+                           "v_ref_kmh": float(d["v_ref_kmh"]), "form": str(d.get("form", "ifi")),
+                           "floor": float(d.get("floor", 0.05)), "config": d}
     m = eff_cfg["metadata"]
     if m["enabled"]:
         if m["column"] not in row:
@@ -267,8 +277,7 @@ def mu_steps(speed_kmh, truth: dict) -> dict:
             * e["temperature"]["level_factor"]
     out["temperature"] = cur
     if e["drainage"]["enabled"]:
-        dr = e["drainage"]
-        cur = cur * np.exp(-dr["size"] * (v - dr["v_ref_kmh"]) / dr["sp_kmh"])
+        cur = cur * drainage_factor(v, e["drainage"])
     out["drainage"] = cur
     if e["metadata"]["enabled"]:
         cur = cur * e["metadata"]["factor"]
@@ -278,6 +287,20 @@ def mu_steps(speed_kmh, truth: dict) -> dict:
     out["section"] = cur
     out["total"] = cur
     return out
+
+
+def drainage_factor(speed_kmh, drainage: dict) -> np.ndarray:
+    """The drainage multiplier (dimensionless) at DFT speed(s) in km/h, 1 at ``v_ref_kmh``.
+
+    ``"ifi"``: ``exp(-size (v - v_ref) / Sp)`` (PIARC / IFI). ``"squeeze"``: ``max(floor, 1 - size (v^2 - v_ref^2)
+    / Sp^2)``, partial hydroplaning: the share of the slider load carried by the water wedge grows with the
+    hydrodynamic pressure ~ rho v^2 / 2 (Horne & Joyner 1965; Moore 1975, squeeze-film), and drainage through the
+    macrotexture raises the speed scale (the IFI speed constant Sp = a + b MPD stands in for it)."""
+    v = np.asarray(speed_kmh, dtype=float)
+    sp, k, v0 = drainage["sp_kmh"], drainage["size"], drainage["v_ref_kmh"]
+    if drainage.get("form", "ifi") == "squeeze":
+        return np.maximum(drainage.get("floor", 0.05), 1.0 - k * (v * v - v0 * v0) / (sp * sp))
+    return np.exp(-k * (v - v0) / sp)
 
 
 def mu_true(speed_kmh, truth: dict) -> np.ndarray:
