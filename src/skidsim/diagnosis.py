@@ -569,11 +569,10 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                       texture_pc_scores: pd.DataFrame | None = None) -> list[Cause]:
     """Screen every candidate cause at every level; returns causes ranked by evidence.
 
-    Ranking: significant causes first (statistical evidence decides whether a cause is named), those of the
-    primary family (the pre-specified mechanisms that have a physical extension) before the secondary ones (a
-    mechanism's footprint on correlated texture clusters, e.g. drainage's level misfit on a macrotexture cluster,
-    ranks after the mechanism), within each by ``cv_msr`` (cross-validated explained residual mean square, mu^2:
-    predictive evidence); section identity
+    Ranking: significant causes first (statistical evidence decides whether a cause is named), among them by
+    ``cv_msr`` (cross-validated explained residual mean square, mu^2: predictive evidence); a significant MPD x
+    speed (the drainage hypothesis on the MPD column) ranks above every significant texture cluster that holds the
+    MPD column (the same variable's footprint without a mechanism); section identity
     goes below a significant coarser section-level grouping of the same level and kind (parsimony); the within-site
     functional form goes below a significant within-site covariate x speed (the covariate explains how the shared
     shape varies between sites, and its model nests the shared shape); the rest by
@@ -852,8 +851,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                             section_level=t["section_level"], n_sites=t["n"], n_permutations=P,
                             family=u["family"], unit=u["name"], unit_p=float(unit_p[unit_of[j]]),
                             texture_pcs=int(t["texture_pcs"]), texture_pcs_cv=int(t["texture_pcs_cv"])))
-    causes.sort(key=lambda c: (not c.significant, c.significant and c.family != "primary",
-                               -c.cv_msr if c.significant else c.p_adjusted, -c.z))
+    causes.sort(key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     # parsimony: section identity ranks below a significant coarser section-level grouping (e.g. mix) of the
     # same level and kind, whose evidence it contains
     n_sec_all = section_of.nunique()
@@ -878,6 +876,15 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     # sites, the shape's amplitude follows the covariate and the shared shape is its mean over the sites; the
     # covariate names the mechanism (its model, shared profile + covariate x profile, nests the functional form's),
     # so the functional form ranks right below the first such cause
+    # the physical hypothesis on the MPD column ranks above the texture clusters that hold MPD (e.g. drainage makes the
+    # texture model misfit the level of shallow-texture sites: the macrotexture height cluster is significant
+    # between sites; MPD x speed names the mechanism)
+    if mpd_col is not None:
+        mp = [k for k, c in enumerate(causes) if c.significant and c.variable == mpd_col and c.kind == "x_speed"]
+        above = [k for k, c in enumerate(causes) if c.significant and mp and k < mp[0] and mpd_col in c.group
+                 and c.unit is not None and str(c.unit).startswith("cluster:")]
+        if mp and above:
+            causes.insert(above[0], causes.pop(mp[0]))
     ff = [k for k, c in enumerate(causes) if c.significant and c.kind == "functional_form" and c.level == "within-site"]
     xs = [k for k, c in enumerate(causes) if c.significant and c.kind == "x_speed" and c.level == "within-site"]
     if ff and xs and ff[0] < xs[0]:
