@@ -337,6 +337,11 @@ def test_hidden_effect_is_named_and_extension_gains(tmp_path, effect):
     expected = {"temperature": "TemperatureShift", "drainage": "DrainageIFI", "squeeze": "DrainageIFI"}.get(effect)
     if expected is not None:
         assert expected in [r.gain["extension"]] + [a["extension"] for a in r.gain["alternatives"]]
+    if r.gain["extension"] == "DrainageIFI":  # form "auto": the chosen curve form per fold is recorded and reported
+        folds = own["extension"]["params_per_fold"]
+        assert all(f["form"] in ("ifi", "squeeze") and f["train_sse"] >= 0 for f in folds)
+        report = Path(dg.write_outputs(tmp_path / "out", r.residuals, r.causes, r.gain)["report"]).read_text()
+        assert "Drainage curve form chosen on the training data, per fold:" in report
 
 
 def test_texture_clusters_and_families():

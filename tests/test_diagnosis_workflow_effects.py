@@ -8,7 +8,8 @@ the texture, and the texture model, trained on calibrated curves that carry the 
 plain residual test has p 0.29. The texture-adjusted test (docs/model-criticism.md, section 2) names it.
 
 Mix: the three "WMA chemical" sections (E3-E5) are 0.05 lower in friction (the truth's section effect on the
-``mix`` column), something no texture parameter carries; mix is section-level, so it is tested on the 12 sections.
+``mix`` column), something no texture parameter carries; mix is section-level, so it is tested on the 12 sections
+(2 sites per section here, 24 sites: the sections are the units, and the suite stays within its time budget).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ def test_workflow_names_a_hidden_temperature_effect(tmp_path):
 def test_workflow_names_a_hidden_mix_effect(tmp_path):
     effects = NO_EFFECTS + """    section: {enabled: true, column: mix, offsets: {"WMA chemical": -0.05}}
 """
-    out = run_campaign(tmp_path, seed=7, effects=effects)
+    out = run_campaign(tmp_path, seed=7, effects=effects, sites_per_section=2)  # mix is tested on its 12 sections
     top = named(out["causes"])
     assert top is not None, [(c["variable"], c["level"], c["kind"], c["p_adjusted"]) for c in out["causes"][:5]]
     assert top["variable"] == "mix" and top["level"] == "between-site" and top["section_level"], top

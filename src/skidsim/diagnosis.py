@@ -1536,6 +1536,13 @@ def write_outputs(out_dir, residuals: pd.DataFrame, causes: list, gain: dict, fi
                      "components)" if top.get("texture_pcs", -1) >= 0 else "") + ".", "",
                   f"Extension applied: **{gain.get('extension')}**"
                   + (f"; FE hook: {gain['fe_hook']['solver_flags']}" if gain.get("fe_hook") else "") + ".", ""]
+        own = gain.get("scopes", {}).get(gain.get("scope") or "", {})
+        folds = own.get("extension", {}).get("params_per_fold", [])
+        if folds and all("form" in f for f in folds):  # DrainageIFI form "auto": the curve form chosen per fold
+            forms = sorted({f["form"] for f in folds})
+            lines += ["Drainage curve form chosen on the training data, per fold: " + ", ".join(
+                f"{fm} {sum(f['form'] == fm for f in folds)} of {len(folds)} (kappa median "
+                f"{float(np.median([f['kappa'] for f in folds if f['form'] == fm])):.3g})" for fm in forms) + ".", ""]
     lines += ["## Gain on held-out data (bootstrap over sites)", "",
               "| scope | sites | points | RMSE before | RMSE after | RMSE gain | R2 before | R2 after |",
               "|---|---|---|---|---|---|---|---|"]
