@@ -872,10 +872,6 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                 causes.insert(below[0], causes.pop(k))
                 moved = True
                 break
-    # hierarchy of within-site shapes: where the functional form and a covariate x speed are both significant within
-    # sites, the shape's amplitude follows the covariate and the shared shape is its mean over the sites; the
-    # covariate names the mechanism (its model, shared profile + covariate x profile, nests the functional form's),
-    # so the functional form ranks right below the first such cause
     # the physical hypothesis on the MPD column ranks above the texture clusters that hold MPD (e.g. drainage makes the
     # texture model misfit the level of shallow-texture sites: the macrotexture height cluster is significant
     # between sites; MPD x speed names the mechanism)
@@ -885,6 +881,10 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                  and c.unit is not None and str(c.unit).startswith("cluster:")]
         if mp and above:
             causes.insert(above[0], causes.pop(mp[0]))
+    # hierarchy of within-site shapes: where the functional form and a covariate x speed are both significant within
+    # sites, the shape's amplitude follows the covariate and the shared shape is its mean over the sites; the
+    # covariate names the mechanism (its model, shared profile + covariate x profile, nests the functional form's),
+    # so the functional form ranks right below the first such cause
     ff = [k for k, c in enumerate(causes) if c.significant and c.kind == "functional_form" and c.level == "within-site"]
     xs = [k for k, c in enumerate(causes) if c.significant and c.kind == "x_speed" and c.level == "within-site"]
     if ff and xs and ff[0] < xs[0]:
