@@ -741,7 +741,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
         # Sp = 14.2 + 89.7 MPD km/h): Y projected on the unit mean shape, one degree of freedom instead of a free
         # profile; the mean shape is invariant to permuting sites, so the nested permutations stay exact
         # (docs/model-criticism.md, section 2)
-        if amp_col is not None and amp_col in C.columns:
+        if amp_col is not None:
             f = D.mean(axis=0)
             fn = float(np.linalg.norm(f))
             Ya = (Ys["x_speed"] @ (f / fn))[:, None] if fn > 0 else np.zeros((n, 1))
@@ -1382,7 +1382,8 @@ def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.
     cov, info = site_covariates(sites, texture_wide)
     # the texture-refit terms use the PCs the test conditioned on (texture_pc_scores, standardised over the
     # between-site test's sites) where those cover every site of the held-out-site scope; else PCs over all sites
-    between = _make_scope(residuals, "between-site")
+    level_scopes = {level: _make_scope(residuals, level) for level in LEVELS}  # built once, used by every extension
+    between = level_scopes["between-site"]
     pcs = texture_pc_scores
     if pcs is None or between is None or not set(between.sites) <= set(pcs.index):
         sc = texture_scores(cov, info)
@@ -1392,8 +1393,7 @@ def evaluate_extension(model: ExtendedModel, residuals: pd.DataFrame, sites: pd.
     results = []
     for ext in [model.extension] + ([model.fallback] if model.fallback is not None else []):
         scopes, preds = {}, []
-        for level in LEVELS:
-            sc = _make_scope(residuals, level)
+        for sc in level_scopes.values():
             if sc is None:
                 continue
             rows, params = cross_fit(ext, sc, cov)
