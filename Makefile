@@ -8,7 +8,7 @@ CORES ?= 2
 STAMP := $(VENV)/.skidsim-installed
 TEST_STAMP := $(VENV)/.skidsim-test-installed
 
-.PHONY: reproduce test setup setup-test system-deps report dryrun clean-results benchmarks
+.PHONY: reproduce test setup setup-test system-deps report dryrun clean-results benchmarks test-slurm
 
 $(STAMP): requirements.lock pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -17,8 +17,9 @@ $(STAMP): requirements.lock pyproject.toml
 	$(BIN)/python -m pip install -q --no-deps -e .
 	@touch $@
 
-$(TEST_STAMP): $(STAMP) requirements-test.lock
+$(TEST_STAMP): $(STAMP) requirements-test.lock requirements-test-nodeps.lock
 	$(BIN)/python -m pip install -q -r requirements-test.lock
+	$(BIN)/python -m pip install -q --no-deps -r requirements-test-nodeps.lock
 	@touch $@
 
 setup: $(STAMP)
@@ -34,12 +35,27 @@ system-deps:
 	else echo "NOTE: CalculiX (ccx) not found and not root: the CalculiX comparison tests will be skipped. Install calculix-ccx."; fi
 
 ## Run the whole workflow on the embedded default campaign (or CONFIG=... for another config file).
+## Stopped (Ctrl-C, kill -9)? Run it again: it resumes (skidsim.launch: stale lock removed, half-done jobs redone,
+## finished FE runs kept).
 reproduce: $(STAMP)
-	$(BIN)/snakemake --cores $(CORES) $(if $(CONFIG),--configfile $(CONFIG),)
+	$(BIN)/python -m skidsim.launch --cores $(CORES) $(if $(CONFIG),--configfile $(CONFIG),)
 
 ## Run the test suite.
 test: setup-test
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q $(PYTEST_ARGS)
+
+## Run tests/test_slurm.py on this machine made a single-node SLURM cluster (cluster/single-node-slurm.sh, needs
+## root), without and then with accounting (slurmdbd); a cluster this target started is stopped at the end.
+## Measured figures (wall time, what SLURM granted each job) are appended to SLURM_REPORT.
+SLURM_REPORT ?= benchmarks/out/slurm-report.jsonl
+test-slurm: setup-test
+	@set -e; mkdir -p $(dir $(SLURM_REPORT)); started=; cluster/single-node-slurm.sh status >/dev/null 2>&1 || started=1; \
+	for acct in 0 1; do \
+	  cluster/single-node-slurm.sh start $$([ $$acct = 1 ] && echo --accounting); \
+	  SKIDSIM_TEST_SLURM=1 SKIDSIM_SLURM_ACCOUNTING=$$acct SKIDSIM_SLURM_REPORT=$(abspath $(SLURM_REPORT)) \
+	    $(BIN)/python -m pytest -p no:xdist -q -s tests/test_slurm.py $(PYTEST_ARGS) || { rc=$$?; break; }; \
+	done; \
+	if [ -n "$$started" ]; then cluster/single-node-slurm.sh stop; fi; exit $${rc:-0}
 
 dryrun: $(STAMP)
 	$(BIN)/snakemake -n --cores $(CORES)

@@ -28,6 +28,7 @@ include: "workflow/rules/texture.smk"
 include: "workflow/rules/mesh.smk"
 include: "workflow/rules/solver.smk"
 include: "workflow/rules/calibration.smk"
+include: "workflow/rules/ifi.smk"
 include: "workflow/rules/regression.smk"
 include: "workflow/rules/diagnosis.smk"
 include: "workflow/rules/fe_extension.smk"
@@ -39,3 +40,16 @@ rule all:
         all_targets(),
     default_target: True
     localrule: True
+
+
+# A failed job's skidsim error (bad input, interrupt) is its script's one line in its log; they are printed once
+# more, together, after Snakemake's own report, so the reason is the last thing on the screen.
+import time as _time
+
+_STARTED = _time.time()
+
+
+onerror:
+    from skidsim.runlog import failure_report
+
+    failure_report("logs", since=_STARTED - 1.0)

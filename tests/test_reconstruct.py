@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from skidsim.errors import InputError
-from skidsim.reconstruct import (Heightfield, area_weights, gaussian_sigma_mm, pavement_strip,
+from skidsim.reconstruct import (Heightfield, area_weights, gaussian_sigma_mm, pavement_strip, strip_length_mm,
                                  remove_mean_plane, resample_area)
 from skidsim.surface import Surface
 
@@ -217,6 +217,24 @@ def test_pavement_strip_bad_input():
         pavement_strip(s, length_mm=40.0, width_mm=20.0, resolution_mm=-1)
 
 
+def test_scan_shorter_than_strip_early_error_or_auto_length():
+    """A scan 0.3 mm shorter than the study's 114.3 mm strip: a clear error naming the shortfall and the remedy,
+    or with length_mm='auto' a strip of the scan's whole length."""
+    s = _scan(lambda X, Y: 0.2 * np.sin(2 * np.pi * X / 7.0) + 0.01 * Y, W=114.0, H=50.0, d=0.05, name="short")
+    assert s.width_mm == pytest.approx(114.0)
+    with pytest.raises(InputError, match=r"short: column 'x0_mm'.*the scan is 0\.3 mm shorter than the 114\.3 mm "
+                                         r"strip: give a longer scan, or length_mm='auto'"):
+        pavement_strip(s)
+    hf = pavement_strip(s, length_mm="auto")
+    assert hf.meta["length_mm"] == pytest.approx(114.0) and hf.meta["x0_mm"] == pytest.approx(0.0, abs=1e-12)
+    assert hf.shape == (81, 229) and hf.length_m == pytest.approx(0.114)  # 228 cells of 0.5 mm
+    assert strip_length_mm(s, "auto", x0_mm=4.0) == pytest.approx(110.0)
+    long = _scan(lambda X, Y: 0.0 * X, W=124.0, H=50.0, d=0.1)
+    assert pavement_strip(long, length_mm="auto").meta["length_mm"] == 114.3  # capped at the study's strip
+    with pytest.raises(InputError, match="a strip length in mm or 'auto'"):
+        pavement_strip(s, length_mm="fit")
+
+
 def test_npz_round_trip_and_errors(tmp_path, quad_hf):
     hf = Heightfield(quad_hf.z_m, quad_hf.dx_m, quad_hf.dy_m, quad_hf.origin_m, -0.01, "site-A",
                      {"x0_mm": 4.85, "nested": {"a": 1}})
@@ -250,3 +268,15 @@ def test_volume_bilinear_and_crop():
     np.testing.assert_allclose(c.evaluate(2e-3, 1.5e-3)[0], hf.evaluate(2e-3, 1.5e-3)[0], atol=1e-15)
     with pytest.raises(InputError):
         Heightfield(np.full((3, 3), np.nan), 1e-3, 1e-3)
+
+
+def test_simulate_command_takes_auto_strip_length(capsys):
+    from skidsim.cli import build_parser
+
+    base = ["simulate", "s.x3p", "--speed", "20", "--mu-s", "0.5", "--mu-k", "0.4", "--alpha", "0.1"]
+    assert build_parser().parse_args(base).length_mm == 114.3
+    assert build_parser().parse_args(base + ["--length-mm", "auto"]).length_mm == "auto"
+    assert build_parser().parse_args(base + ["--length-mm", "100"]).length_mm == 100.0
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(base + ["--length-mm", "fit"])
+    assert "expected a length in mm or 'auto', got 'fit'" in capsys.readouterr().err

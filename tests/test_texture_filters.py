@@ -117,7 +117,7 @@ def test_despeckle_axis_and_mad_and_errors():
         despeckle(s, axis=2)
 
 
-def test_default_mad_keeps_genuine_voids_that_tukey_clips():
+def test_mad_and_local_keep_genuine_voids_that_tukey_clips():
     from scipy import ndimage
     rng = np.random.default_rng(4)
     f = ndimage.gaussian_filter1d(rng.standard_normal(1200), 25)
@@ -125,11 +125,12 @@ def test_default_mad_keeps_genuine_voids_that_tukey_clips():
     prof = 0.6 * np.minimum(f, 0.7) + 0.01 * rng.standard_normal(1200)  # flat tops, deep voids
     prof[[150, 420, 800]] += [4.0, -3.5, 5.0]
     s = Surface(prof[None, :], 0.05, 0.05)
-    out, n = despeckle(s)  # default: mad, k = 3.5
-    assert n == 3
     keep = np.ones(1200, bool)
     keep[[150, 420, 800]] = False
-    assert np.array_equal(out.heights[0][keep], prof[keep])
+    for method in ("mad", "local"):  # mad: k = 3.5 robust sigma per row; local (default): isolated 2-D outliers
+        out, n = despeckle(s, method)
+        assert n == 3, method
+        assert np.array_equal(out.heights[0][keep], prof[keep]), method
     assert despeckle(s, "tukey")[1] > 3  # Tukey's lower fence cuts into the void bottoms
 
 

@@ -10,8 +10,9 @@ from skidsim.texture import mean_profile_depth
 
 def sine_scan(rows=6, cols=2448, dx=0.05, amp=0.8, lam=10.0):
     x = np.arange(cols) * dx
-    # crests at bin centres (0.225 mm + k 0.5 mm), the first 5 mm from the start (away from filter transients)
-    z = amp * np.cos(2 * np.pi * (x - 0.225 - 5.0) / lam)
+    # bin k = ceil(x / 0.5 mm) holds x in (0.5 (k - 1), 0.5 k]: its centre is 0.5 k - 0.225 mm; crests at bin
+    # centres, the first 5 mm from the start (away from filter transients)
+    z = amp * np.cos(2 * np.pi * (x - 0.275 - 5.0) / lam)
     return np.tile(z, (rows, 1)), x
 
 
@@ -43,7 +44,8 @@ def test_mpd_of_sinusoid_matches_analytic():
 def test_mpd_without_lowpass_and_point_sampling_difference():
     z, _ = sine_scan(lam=20.0)
     res = mean_profile_depth(Surface(z, 0.05, 0.05), lowpass_mm=None)
-    assert res.mpd_mm == pytest.approx(expected_msd(0.8, 20.0, lowpass=False), rel=1e-9)
+    # bin means are rounded to 1e-6 mm (captif-slp); the first bin also holds x = 0 (11 samples, not 10)
+    assert res.mpd_mm == pytest.approx(expected_msd(0.8, 20.0, lowpass=False), abs=5e-6)
 
 
 def test_dropout_and_spike_rules():
@@ -60,5 +62,56 @@ def test_axis_columns_and_short_profiles():
     z, _ = sine_scan(rows=3)
     res = mean_profile_depth(Surface(z.T.copy(), 0.05, 0.05), axis=0)
     assert res.mpd_mm == pytest.approx(expected_msd(0.8, 10.0), rel=2e-3)
-    with pytest.raises(ValueError, match="shorter than one"):
-        mean_profile_depth(Surface(np.zeros((4, 100)), 0.05, 0.05))
+
+def test_short_profiles_give_nan_and_one_warning(caplog):
+    # 84.95 mm profiles: 170 resampled samples, below 90 % of the 200 of a 100 mm segment
+    with caplog.at_level("WARNING", logger="skidsim"):
+        res = mean_profile_depth(Surface(np.zeros((4, 1700)), 0.05, 0.05, name="short"))
+    assert np.isnan(res.mpd_mm) and np.isnan(res.etd_mm) and res.n_segments == 0
+    assert [r.getMessage() for r in caplog.records] == [
+        "short: MPD not available: profiles are 84.95 mm long, shorter than one 100 mm segment (at least 90 mm "
+        "needed)"]
+    # 90 mm and more (180 samples at 0.5 mm: 90 % of a segment) is evaluated, as captif-slp does
+    z, _ = sine_scan(rows=2, cols=1800)
+    assert mean_profile_depth(Surface(z, 0.05, 0.05)).n_segments == 2
+
+
+def test_texture_command_on_scan_shorter_than_one_segment(tmp_path, caplog, capsys):
+    """`skidsim texture` on an 80 mm scan: areal parameters computed, MPD NaN, one warning line, exit 0."""
+    import pandas as pd
+
+    from skidsim.cli import main
+    from skidsim.x3p import write_x3p
+
+    rng = np.random.default_rng(3)
+    x = np.arange(1601) * 0.05
+    z = 0.5 * np.sin(2 * np.pi * x / 6.0)[None, :] + rng.normal(0, 0.05, (60, 1601))
+    path = tmp_path / "short.x3p"
+    write_x3p(path, Surface(z, 0.05, 0.05, name="short"))
+    out = tmp_path / "short.csv"
+    with caplog.at_level("WARNING", logger="skidsim"):
+        assert main(["texture", str(path), "-q", "-o", str(out)]) == 0
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert warnings == ["short: MPD not available: profiles are 80.00 mm long, shorter than one 100 mm segment "
+                        "(at least 90 mm needed)"]
+    table = pd.read_csv(out)
+    mpd = table[(table["band"] == "profile") & (table["parameter"] == "MPD")]["value"]
+    assert len(mpd) == 1 and mpd.isna().all()
+    sq = table[(table["band"] == "raw") & (table["parameter"] == "Sq")]["value"].iloc[0]
+    assert sq == pytest.approx(np.sqrt(0.5 ** 2 / 2 + 0.05 ** 2), rel=0.05)  # sine + noise, areal parameters kept
+
+
+def test_texture_options_reach_the_areal_mpd():
+    from skidsim.errors import ConfigError
+    from skidsim.texture import TextureOptions
+
+    z, _ = sine_scan(rows=2, cols=4200)  # 210 mm: two 100 mm segments, or one 200 mm segment
+    s = Surface(z, 0.05, 0.05)
+    assert mean_profile_depth(s, **TextureOptions().mpd_kwargs()).n_segments == 4
+    opt = TextureOptions(mpd_segment_mm=200.0, mpd_spike_alpha=2.0, mpd_max_dropout_pct=5.0)
+    kw = opt.mpd_kwargs()
+    assert kw == {"axis": 1, "segment_mm": 200.0, "spike_alpha": 2.0, "detect_plates": False,
+                  "plate_threshold_mm": 30.0, "max_dropout_pct": 5.0}
+    assert mean_profile_depth(s, **kw).n_segments == 2
+    with pytest.raises(ConfigError, match="texture.mpd_spike_alpha: expected a positive number, got 0.0"):
+        TextureOptions(mpd_spike_alpha=0.0)

@@ -330,6 +330,47 @@ def test_we_read_surfalize_files(tmp_path):
     np.testing.assert_allclose(r.heights, s.heights, rtol=1e-14)
 
 
+@pytest.mark.peer
+def test_we_read_surfacetopography_files_md5_of_data_bin(tmp_path):
+    """SurfaceTopography writes ``<MD5 OF data.bin, upper case> *bindata/data.bin`` into md5checksum.hex."""
+    st = pytest.importorskip("SurfaceTopography")
+    s = scan(rows=9, cols=14, invalid=0.0)
+    p = tmp_path / "from_st.x3p"
+    # SurfaceTopography arrays are (nx, ny): the transpose of (rows, cols); lengths in m
+    st.Topography(s.heights.T * 1e-3, physical_sizes=(14 * 5e-5, 9 * 5e-5), unit="m").to_x3p(p)
+    stated = members(p)["md5checksum.hex"].decode()
+    assert stated.split() == [hashlib.md5(members(p)["bindata/data.bin"]).hexdigest().upper(), "*bindata/data.bin"]
+    r = read_x3p(p)
+    assert r.shape == (9, 14) and r.dx == pytest.approx(0.05) and r.dy == pytest.approx(0.05)
+    np.testing.assert_allclose(r.heights, s.heights, rtol=1e-12, atol=1e-15)
+    hdr = read_x3p_header(p)
+    assert (hdr.size_x, hdr.size_y, hdr.dtype) == (14, 9, "D")
+
+
+@pytest.mark.parametrize("content, ok", [
+    ("{xml_md5} *main.xml\n", True),            # openGPS library / md5sum binary mode
+    ("{XML_MD5}  main.xml\r\n", True),          # md5sum text mode, upper case, CRLF
+    ("{xml_md5}", True),                         # bare digest of main.xml
+    ("{bin_md5}", True),                         # bare digest of the point data
+    ("{BIN_MD5} *bindata/data.bin\n", True),     # SurfaceTopography
+    ("{bin_md5} *main.xml\n", False),            # names main.xml, holds the data's digest
+    ("{xml_md5} *bindata/data.bin\n", False),    # names the data, holds main.xml's digest
+    ("{xml_md5} *bindata/other.bin\n", False),   # names a member that is not there
+    ("0123456789abcdef0123456789abcdef\n", False),
+])
+def test_checksum_conventions_of_real_writers(tmp_path, content, ok):
+    p = make(tmp_path)
+    m = members(p)
+    xml_md5, bin_md5 = hashlib.md5(m["main.xml"]).hexdigest(), hashlib.md5(m["bindata/data.bin"]).hexdigest()
+    text = content.format(xml_md5=xml_md5, XML_MD5=xml_md5.upper(), bin_md5=bin_md5, BIN_MD5=bin_md5.upper())
+    q = rezip(p, tmp_path / "conv.x3p", {"md5checksum.hex": text.encode()})
+    if ok:
+        np.testing.assert_array_equal(np.isnan(read_x3p(q).heights), np.isnan(scan().heights))
+    else:
+        with pytest.raises(ScanFormatError, match=r"conv\.x3p: expected md5checksum\.hex (holding|naming)"):
+            read_x3p_header(q)
+
+
 def test_datalist_text_points(tmp_path):
     """Points stored as text in main.xml (Record3/DataList) instead of data.bin; empty Datum = invalid."""
     xml = HAND_XML.replace("<DataType>L</DataType>{zscale}", "<DataType>D</DataType>")

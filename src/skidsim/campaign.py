@@ -50,6 +50,7 @@ class Campaign:
     metadata_columns: the columns beyond :data:`REQUIRED_COLUMNS`, in file order.
     speeds_kmh: the DFT speeds (km/h) every trace was checked to cover.
     traces: DFT trace per site id.
+    rows: line of sites.csv (header = row 1) per site id, for messages.
     """
 
     directory: Path
@@ -57,6 +58,7 @@ class Campaign:
     metadata_columns: list[str]
     speeds_kmh: tuple[float, ...] = tuple(float(v) for v in DEFAULT_SPEEDS_KMH)
     traces: dict[str, DftTrace] = field(default_factory=dict)
+    rows: dict[str, int] = field(default_factory=dict)
 
     @property
     def site_ids(self) -> list[str]:
@@ -91,12 +93,36 @@ def _resolve(directory: Path, text: str) -> Path:
     return (p if p.is_absolute() else directory / p).resolve()
 
 
-def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header") -> Campaign:
+def _outside(directory: Path, text: str) -> bool:
+    from skidsim.validate import inside
+
+    return not inside(directory, text)
+
+
+def site_rows(directory) -> list[tuple[int, dict[str, str]]]:
+    """The data rows of ``sites.csv`` as ``(line, {column: text})`` without any check (empty list when the file
+    is missing or has no header); for checks that need the raw cells even when the table has problems."""
+    path = Path(directory) / SITES_FILE
+    if not path.is_file():
+        return []
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        records = [(reader.line_num, row) for row in reader]
+    if not records:
+        return []
+    header = [c.strip() for c in records[0][1]]
+    return [(line, dict(zip(header, (f.strip() for f in fields)))) for line, fields in records[1:]
+            if any(f.strip() for f in fields)]
+
+
+def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header", allow_outside=True) -> Campaign:
     """Read and validate a campaign directory; return a :class:`Campaign` or raise one :class:`CampaignError`.
 
     ``speeds_kmh``: DFT speeds (km/h) each trace must cover. ``check_scans``: ``"header"`` (or ``True``)
     checks each scan without decoding all heights (X3P: zip, main.xml checksum, header, data sizes),
-    ``"full"`` reads each scan completely, ``False`` only checks that the file exists.
+    ``"full"`` reads each scan completely, ``False`` only checks that the file exists. ``allow_outside``: accept
+    scan/DFT paths that leave the campaign directory (``../``, absolute paths elsewhere); with False each is a
+    problem. :mod:`skidsim.validate` adds the checks of the analysis' needs (scan contents, config).
 
     The raised error's message starts with a one-line summary and lists every problem as
     ``<file>: row <n>, column '<col>': expected ..., got ...``; ``err.errors`` holds them as exceptions.
@@ -182,7 +208,12 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
                 rec[kind] = ""
                 continue
             p = _resolve(directory, rec[kind])
-            if not p.is_file():
+            if not allow_outside and _outside(directory, rec[kind]):
+                errors.append(CampaignError(sites_csv, f"a {kind} path inside the campaign directory {directory} "
+                                            "(config ingest.allow_outside_campaign: true, or skidsim validate "
+                                            "--allow-outside, accepts others)", row=line, column=kind,
+                                            got=rec[kind]))
+            elif not p.is_file():
                 errors.append(CampaignError(sites_csv, f"an existing {kind} file", row=line, column=kind,
                                             got=rec[kind], hint=f"no file {p}"))
             rec[kind] = str(p)
@@ -233,4 +264,4 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
         else:
             sites[c] = vals.astype(object)
     return Campaign(directory=directory, sites=sites, metadata_columns=metadata_columns, speeds_kmh=speeds,
-                    traces=traces)
+                    traces=traces, rows={rec["site"]: line for (rec, _, _), line in zip(rows, line_of)})

@@ -2,8 +2,10 @@
 
     skidsim validate CAMPAIGN_DIR                 check a campaign against the data contract
     skidsim texture SCAN [-o OUT.parquet|.csv]    areal parameters of one scan (raw, macro, micro) and MPD
+    skidsim mpd PROFILE [-o SEGMENTS.csv]         mean profile depth (ISO 13473-1) of a text line profile
     skidsim simulate SCAN --speed 40 --mu-s .. --mu-k .. --alpha ..   one FE simulation: SN, trace, VTU
-    skidsim synth OUT_DIR [--sites N]             write a synthetic campaign (scans, DFT, sites.csv, truth)
+    skidsim synth OUT_DIR [--sites N] [--generator default|chips|spectral]
+                                                  write a synthetic campaign (scans, DFT, sites.csv, truth)
 """
 
 from __future__ import annotations
@@ -20,11 +22,35 @@ log = logging.getLogger("skidsim")
 
 
 def _cmd_validate(args) -> int:
-    from .campaign import load_campaign
+    import yaml
 
-    camp = load_campaign(args.campaign, speeds_kmh=args.speeds, check_scans=args.check_scans)
+    from . import validate
+    from .workflow_support import merged
+
+    config: dict = {}
+    for path in args.configfile or []:
+        try:
+            with open(path, encoding="utf-8") as fh:
+                config = merged(config, yaml.safe_load(fh) or {})
+        except (OSError, yaml.YAMLError) as exc:
+            raise validate.ConfigProblem(path, "a readable YAML config file", got=f"{type(exc).__name__}: {exc}") \
+                from None
+    if args.speeds:  # one list: the trace must cover all of them; the config's own split is kept otherwise
+        config = merged(config, {"speeds": {"calibration_kmh": args.speeds, "validation_kmh": []}})
+    if args.allow_outside:
+        config = merged(config, {"ingest": {"allow_outside_campaign": True}})
+    source = ", ".join(args.configfile) if args.configfile else "defaults of config/config.yaml"
+    req = validate.Requirements.from_config(config, source=source if args.configfile else validate.CONFIG)
+    t0 = time.perf_counter()
+    camp, found = validate.problems(args.campaign, req, level=args.level)
+    if args.speeds:  # an explicit speed list has no calibration/validation split to cross-check
+        found = [e for e in found if getattr(e, "column", None) != "speeds.validation_kmh"]
+    if found:
+        print(validate.format_problems(found), file=sys.stderr)
+        return 2
     sites = camp.sites
-    print(f"{args.campaign}: OK, {len(sites)} sites in {sites['section'].nunique()} sections")
+    print(f"{args.campaign}: OK, {len(sites)} sites in {sites['section'].nunique()} sections "
+          f"(level {args.level}, {time.perf_counter() - t0:.1f} s)")
     print(f"metadata columns: {', '.join(camp.metadata_columns) or '(none)'}")
     print(f"temperature: {sites['temperature_c'].min():.1f} .. {sites['temperature_c'].max():.1f} deg C")
     return 0
@@ -59,6 +85,52 @@ def _cmd_texture(args) -> int:
     return 0
 
 
+def _fmt_mm(v: float) -> str:
+    return "n/a" if v != v else f"{v:.4f}"
+
+
+def _cmd_mpd(args) -> int:
+    from .profiles import read_profile
+    from .texture.mpd import MPDOptions, profile_segments, summarise
+
+    prof = read_profile(args.profile, distance_col=args.distance_col, height_col=args.height_col)
+    opts = MPDOptions(segment_mm=args.segment_mm, spike_alpha=args.spike_alpha, detect_plates=args.detect_plates,
+                      plate_threshold_mm=args.plate_threshold_mm, max_dropout_pct=args.max_dropout_pct)
+    segs = profile_segments(prof.height_mm, prof.distance_mm, opts)
+    res = summarise(segs, name=Path(args.profile).name, segment_mm=args.segment_mm,
+                    profile_mm=float(prof.distance_mm[-1] - prof.distance_mm[0]))
+    n_valid = res.n_segments - res.n_invalid_segments
+    print(f"MPD {_fmt_mm(res.mpd_mm)} mm, SD {_fmt_mm(res.sd_mm)} mm, {n_valid} valid segment"
+          f"{'' if n_valid == 1 else 's'}, {res.n_invalid_segments} invalid segment"
+          f"{'' if res.n_invalid_segments == 1 else 's'}; ETD {_fmt_mm(res.etd_mm)} mm")
+    trim = [f"{lab} {v:.3f} mm" for lab, v in (("starts at", segs.trim_start_mm[0]), ("ends at", segs.trim_end_mm[0]))
+            if v == v]
+    print(f"{prof.path}: {len(prof.distance_mm)} samples, {prof.distance_mm[0]:g} .. {prof.distance_mm[-1]:g} mm, "
+          f"{prof.n_dropouts} dropouts; columns {prof.columns[0]!r}, {prof.columns[1]!r}"
+          + (f"; plates detected: profile {', '.join(trim)}" if trim else "")
+          + ("; distances below 0 belong to no segment (segments are (0, L], (L, 2L], ...)"
+             if prof.distance_mm[0] < 0 else ""))
+    if args.output:
+        frame = segs.to_frame().drop(columns="profile")
+        frame.insert(0, "segment", range(1, len(frame) + 1))
+        frame.to_csv(args.output, index=False, float_format="%.6g")
+        print(f"wrote {args.output}")
+    return 0
+
+
+def _strip_length(text: str) -> float | str:
+    """``--length-mm``: a positive number of mm or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a length in mm or 'auto', got {text!r}") from None
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive length in mm, got {text!r}")
+    return v
+
+
 def _cmd_simulate(args) -> int:
     from . import texture
     from .friction import ExponentialDecay
@@ -69,9 +141,9 @@ def _cmd_simulate(args) -> int:
     from .workflow_support import solver_config
 
     surface = read_scan(args.scan)
-    clean, _ = texture.despeckle(surface, method="mad")
+    clean, _ = texture.despeckle(surface)  # the default rule (local), as the workflow
     clean = texture.fill_invalid(clean)
-    pav = pavement_strip(clean, resolution_mm=args.resolution_mm)
+    pav = pavement_strip(clean, length_mm=args.length_mm, resolution_mm=args.resolution_mm)
     cfg = solver_config({"preset": args.preset, "load_n": args.load_n, "overrides": {}})
     law = ExponentialDecay(args.mu_s, args.mu_k, args.alpha)
     res = simulate(pav, args.speed, law, cfg, trace_path=args.trace, vtu_dir=args.vtu,
@@ -86,6 +158,8 @@ def _cmd_synth(args) -> int:
     from .runlog import Progress
     from .workflow_support import merged
 
+    if args.generator != "default":
+        return _cmd_synth_independent(args)
     cfg = synthetic.default_config()
     over = {"seed": args.seed}
     if args.shape:
@@ -109,29 +183,79 @@ def _cmd_synth(args) -> int:
     return 0
 
 
+def _cmd_synth_independent(args) -> int:
+    """``synth --generator chips|spectral``: a campaign of :mod:`skidsim.generators` (36 sites in 12 sections by
+    default; ``--sites N``: N sites in max(3, round(N / 3)) sections)."""
+    from . import generators
+    from .runlog import Progress
+
+    over = {"seed": args.seed}
+    if args.sites:
+        over["n_sites"] = args.sites
+    if args.shape:
+        over["shape"] = list(args.shape)
+    if args.spacing_mm:
+        over["spacing_mm"] = args.spacing_mm
+    n = over.get("n_sites", generators.generator_config(args.generator)["n_sites"])
+    out = Path(args.out_dir)
+    truth_dir = Path(args.truth_dir) if args.truth_dir else out.parent / (out.name + "-truth")
+    prog = Progress(n, f"{args.generator} sites", log, every_s=0)
+    design = generators.write_campaign(out, args.generator, over, truth_dir=truth_dir, progress=prog)
+    print(f"wrote {len(design)} sites ({args.generator} generator) to {out} (truth in {truth_dir})")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="skidsim", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    p.add_argument("-v", "--verbose", action="store_true", help="more log output")
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="more log output, and the Python traceback of an error (also SKIDSIM_DEBUG=1)")
     sub = p.add_subparsers(dest="command", required=True)
 
     v = sub.add_parser("validate", help="check a campaign directory against the data contract")
     v.add_argument("campaign", help="directory holding sites.csv")
-    v.add_argument("--speeds", type=float, nargs="+", default=[20, 30, 40, 50, 60, 70],
-                   help="speeds in km/h every DFT trace must cover (default 20..70)")
-    v.add_argument("--check-scans", choices=["header", "full"], default="header",
-                   help="header: checksum and size of each scan; full: decode each scan")
+    v.add_argument("--configfile", action="append", metavar="YAML",
+                   help="workflow config file(s) whose speeds, strip, texture band and ingest keys to check against "
+                        "(repeatable, merged in order over the defaults of config/config.yaml)")
+    v.add_argument("--speeds", type=float, nargs="+",
+                   help="speeds in km/h every DFT trace must cover (default: the config's calibration and "
+                        "validation speeds, 20..70)")
+    v.add_argument("--level", "--check-scans", dest="level", choices=["full", "header", "table"], default="full",
+                   help="full (default): decode every scan (checksums, valid share, heights); header: scan "
+                        "headers only (spacing, extent, Z increment); table: sites.csv, paths and DFT traces only")
+    v.add_argument("--allow-outside", action="store_true",
+                   help="accept scan/DFT paths outside the campaign directory")
     v.set_defaults(func=_cmd_validate)
 
     t = sub.add_parser("texture", help="areal texture parameters of one scan (raw, macro, micro) and MPD")
     t.add_argument("scan", help="X3P or grid text scan")
     t.add_argument("-o", "--output", help="write the long table to .parquet or .csv")
-    t.add_argument("--despeckle", choices=["mad", "tukey", "study"], default="mad",
-                   help="despeckle fences (default mad; study = the literal limiting filter)")
+    t.add_argument("--despeckle", choices=["local", "mad", "tukey", "study"], default="local",
+                   help="despeckle rule (default local: isolated 2-D outliers, right on flat-binder scans; mad and "
+                        "tukey: per-row fences; study = the literal limiting filter)")
     t.add_argument("--macro-mm", type=float, nargs=2, default=[0.5, 50.0], metavar=("LOW", "HIGH"),
                    help="macrotexture wavelength band in mm (default 0.5 50)")
     t.add_argument("-q", "--quiet", action="store_true", help="do not print the table")
     t.set_defaults(func=_cmd_texture)
+
+    m = sub.add_parser("mpd", help="mean profile depth (ISO 13473-1:2019, as captif-slp) of a text line profile",
+                       description="MPD of a line profile: a text file with a header block of any length and "
+                       "delimited columns of distance and height in mm (NaN, empty or non-numeric heights are "
+                       "dropouts). Prints 'MPD <value> mm, SD <value> mm, <n> valid segments, <n> invalid "
+                       "segments'.")
+    m.add_argument("profile", help="text profile (.csv, .txt, .dat; tab, ';', ',' or space delimited)")
+    m.add_argument("--distance-col", help="distance column: name or 0-based index (default: by name, else 0)")
+    m.add_argument("--height-col", help="height column: name or 0-based index (default: by name, else 1)")
+    m.add_argument("--spike-alpha", type=float, default=3.0,
+                   help="spike threshold factor: a step >= alpha x 0.5 mm is a spike (ISO 13473-1; default 3)")
+    m.add_argument("--detect-plates", action="store_true",
+                   help="exclude reference plates at the ends of the run (heights above --plate-threshold-mm)")
+    m.add_argument("--plate-threshold-mm", type=float, default=30.0, help="plate height threshold in mm (default 30)")
+    m.add_argument("--segment-mm", type=float, default=100.0, help="segment length in mm (default 100)")
+    m.add_argument("--max-dropout-pct", type=float, default=10.0,
+                   help="a segment with more dropouts than this %% is invalid (default 10)")
+    m.add_argument("-o", "--output", help="write each segment (start, end, MSD, dropouts, spikes, valid) to CSV")
+    m.set_defaults(func=_cmd_mpd)
 
     s = sub.add_parser("simulate", help="one FE simulation of the DFT slider on a scan")
     s.add_argument("scan")
@@ -142,6 +266,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--preset", choices=["campaign", "reference", "quick"], default="campaign")
     s.add_argument("--load-n", type=float, default=11.8, help="normal load in N (default 11.8)")
     s.add_argument("--resolution-mm", type=float, default=0.5, help="pavement FE resolution in mm")
+    s.add_argument("--length-mm", type=_strip_length, default=114.3,
+                   help="pavement strip length in mm (default 114.3), or auto: the scan's length up to 114.3 mm")
     s.add_argument("--trace", help="write the force trace to this parquet file")
     s.add_argument("--vtu", help="write a decimated VTU series of the slider into this directory")
     s.set_defaults(func=_cmd_simulate)
@@ -153,22 +279,34 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--shape", type=int, nargs=2, metavar=("ROWS", "COLS"), help="scan size in points")
     g.add_argument("--spacing-mm", type=float, help="lateral spacing in mm")
     g.add_argument("--truth-dir", help="where the ground truth goes (default: OUT_DIR-truth beside it)")
+    g.add_argument("--generator", choices=["default", "chips", "spectral"], default="default",
+                   help="default: skidsim.synthetic (the study-like campaign); chips, spectral: the independent "
+                        "generators of skidsim.generators (docs/synthetic-campaign.md)")
     g.set_defaults(func=_cmd_synth)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand. An error skidsim raises on purpose prints one ``skidsim: error: ...`` block (no
+    traceback unless ``-v`` or ``SKIDSIM_DEBUG=1``), exit status 2; Ctrl-C exits with 130 and one line."""
+    import os
+
     args = build_parser().parse_args(argv)
+    debug = args.verbose or os.environ.get("SKIDSIM_DEBUG", "") not in ("", "0")
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
                         format="%(asctime)s %(levelname)s %(message)s", stream=sys.stderr)
     try:
         return args.func(args)
-    except SkidsimError as e:
+    except (SkidsimError, FileNotFoundError) as e:
+        if debug:
+            import traceback
+
+            traceback.print_exc(file=sys.stderr)
         print(f"skidsim: error: {e}", file=sys.stderr)
         return 2
-    except FileNotFoundError as e:
-        print(f"skidsim: error: {e}", file=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        print(f"skidsim: interrupted ({args.command}); run the same command again to redo it", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -31,6 +31,7 @@ from .errors import InputError, SkidsimError
 from .friction import ExponentialDecay, kmh_to_ms
 from .reconstruct import Heightfield
 from .slidermesh import SliderMesh
+from .runlog import honour_umask
 
 _UNIT_SCALE = {"mm": 1e3, "m": 1.0}
 
@@ -61,6 +62,7 @@ def _atomic(path: str | Path, suffix: str | None = None):
     tmp = Path(tmp)
     try:
         yield tmp
+        honour_umask(tmp)  # mkstemp made it 0600; exports are shared like any other file the user writes
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)

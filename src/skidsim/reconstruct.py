@@ -44,6 +44,7 @@ import numpy as np
 from scipy import ndimage
 
 from .errors import InputError
+from .runlog import honour_umask
 from .surface import Surface
 
 #: ISO 16610-61 Gaussian constant alpha = sqrt(ln 2 / pi): 50 % transmission at the cutoff wavelength.
@@ -319,6 +320,7 @@ class Heightfield:
                          z_bottom_m=self.z_bottom_m, name=np.array(self.name),
                          meta_json=np.array(json.dumps(self.meta, sort_keys=True, default=_json_default)),
                          format=np.array("skidsim.heightfield/1"))
+            honour_umask(tmp)  # mkstemp made it 0600
             os.replace(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
@@ -403,7 +405,22 @@ def remove_mean_plane(z: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.n
     return z - (A @ coef).reshape(z.shape), coef
 
 
-def pavement_strip(surface: Surface, length_mm: float = 114.3, width_mm: float = 40.0,
+#: the study's strip length (mm): the DFT slider's path, ``mesh.length_mm`` by default
+STUDY_STRIP_LENGTH_MM = 114.3
+
+
+def strip_length_mm(surface: Surface, length_mm: float | str, x0_mm: float | None = None) -> float:
+    """The strip length in mm: ``length_mm`` itself, or for ``"auto"`` the scan's length along x from ``x0_mm``
+    (the whole scan when None) up to the study's 114.3 mm."""
+    if isinstance(length_mm, str):
+        if length_mm != "auto":
+            raise InputError(surface.name or "<surface>", "a strip length in mm or 'auto'", column="length_mm",
+                             got=length_mm)
+        return min(STUDY_STRIP_LENGTH_MM, surface.width_mm - (x0_mm or 0.0))
+    return float(length_mm)
+
+
+def pavement_strip(surface: Surface, length_mm: float | str = 114.3, width_mm: float = 40.0,
                    x0_mm: float | None = None, y0_mm: float | None = None, resolution_mm: float = 0.5,
                    smoothing: float | str | None = "nyquist", base_depth_mm: float = 8.0,
                    level: bool = True) -> Heightfield:
@@ -414,7 +431,9 @@ def pavement_strip(surface: Surface, length_mm: float = 114.3, width_mm: float =
     surface:
         Despeckled, gap-filled scan (heights mm, no NaN inside the strip and its smoothing margin).
     length_mm, width_mm:
-        Strip size along x (sliding direction) and y, mm (study: 114.3 x 40).
+        Strip size along x (sliding direction) and y, mm (study: 114.3 x 40). ``length_mm="auto"``: the scan's
+        length (from ``x0_mm``, or all of it) up to 114.3 mm, so a scan a little shorter than the study's strip
+        still gives a pavement (:func:`strip_length_mm`); the solver then shortens the slide to fit.
     x0_mm, y0_mm:
         Scan coordinates (mm, ``x = j dx``) of the strip's first node; ``None`` centres the strip.
     resolution_mm:
@@ -429,6 +448,7 @@ def pavement_strip(surface: Surface, length_mm: float = 114.3, width_mm: float =
         the scan's datum.
     """
     where = surface.name or "<surface>"
+    length_mm = strip_length_mm(surface, length_mm, x0_mm)
     for nm, v in (("length_mm", length_mm), ("width_mm", width_mm), ("resolution_mm", resolution_mm),
                   ("base_depth_mm", base_depth_mm)):
         if not (np.isfinite(v) and v > 0):
@@ -444,8 +464,10 @@ def pavement_strip(surface: Surface, length_mm: float = 114.3, width_mm: float =
         y0_mm = 0.5 * (H - width_mm)
     tol = 1e-9 * max(W, H, 1.0)
     if x0_mm < -tol or x0_mm + length_mm > W + tol:
+        hint = (f"the scan is {length_mm - W:.4g} mm shorter than the {length_mm:g} mm strip: give a longer scan, "
+                "or length_mm='auto' for a strip of the scan's length" if length_mm > W + tol else None)
         raise InputError(where, f"a strip x range inside the scan's [0, {W:.4g}] mm", column="x0_mm",
-                         got=(x0_mm, x0_mm + length_mm))
+                         got=(round(x0_mm, 6), round(x0_mm + length_mm, 6)), hint=hint)
     if y0_mm < -tol or y0_mm + width_mm > H + tol:
         raise InputError(where, f"a strip y range inside the scan's [0, {H:.4g}] mm", column="y0_mm",
                          got=(y0_mm, y0_mm + width_mm))

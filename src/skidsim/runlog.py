@@ -26,6 +26,8 @@ def setup_logging(log_path: str | Path | None = None, level: int = logging.INFO)
         console.setLevel(logging.WARNING)
         Path(log_path).parent.mkdir(parents=True, exist_ok=True)
         handlers.append(logging.FileHandler(log_path, mode="w"))
+    if log_path:  # a script's failure line goes to its log; the workflow's onerror handler prints it at the end
+        console.addFilter(lambda record: not getattr(record, "file_only", False))
     for h in handlers:
         h.setFormatter(logging.Formatter(LOG_FORMAT))
         root.addHandler(h)
@@ -33,12 +35,81 @@ def setup_logging(log_path: str | Path | None = None, level: int = logging.INFO)
     logger = logging.getLogger("skidsim")
 
     def _hook(exc_type, exc, tb, _default=sys.excepthook):  # failures reach the rule's log file too
-        logger.error("failed: %s: %s", exc_type.__name__, exc, exc_info=(exc_type, exc, tb))
+        _report_failure(logger, exc_type, exc, tb)
         for h in handlers:
             h.flush()
 
     sys.excepthook = _hook
+    _sigterm_as_interrupt()
     return logger
+
+
+def _sigterm_as_interrupt() -> None:
+    """SIGTERM (Snakemake stopping its jobs, a scheduler's time limit) ends a script like Ctrl-C: the hook above
+    logs one line ``skidsim-error: interrupted`` and the workflow's summary says how to resume."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def _raise(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    signal.signal(signal.SIGTERM, _raise)
+
+
+ERROR_MARK = "skidsim-error:"
+"""Prefix of the one line a failed script writes to its log (the workflow's ``onerror`` handler collects them)."""
+
+
+def debug_requested() -> bool:
+    """True when ``SKIDSIM_DEBUG`` is set to anything but empty or 0: tracebacks of expected errors are shown."""
+    return os.environ.get("SKIDSIM_DEBUG", "") not in ("", "0")
+
+
+def _report_failure(logger: logging.Logger, exc_type, exc, tb) -> None:
+    """Log a script's failure: one line ``skidsim-error: <message>`` for an error skidsim raises on purpose (bad
+    input: the traceback only with ``SKIDSIM_DEBUG=1``) and for an interrupt; the traceback for anything else (a
+    bug)."""
+    from .errors import SkidsimError
+
+    quiet = {"file_only": True}  # not on the console when there is a log file (see setup_logging)
+    if issubclass(exc_type, KeyboardInterrupt):
+        logger.error("%s interrupted", ERROR_MARK, extra=quiet)
+    elif issubclass(exc_type, SkidsimError):
+        text = str(exc)
+        logger.error("%s %s", ERROR_MARK, text.replace("\n", "\n" + " " * (len(ERROR_MARK) + 1)),
+                     exc_info=(exc_type, exc, tb) if debug_requested() else None, extra=quiet)
+    else:
+        logger.error("failed: %s: %s", exc_type.__name__, exc, exc_info=(exc_type, exc, tb))
+
+
+def collect_failures(log_dir: str | Path = "logs", since: float = 0.0) -> list[tuple[str, str]]:
+    """``(log file, message)`` of every script that failed with a skidsim error (or was interrupted) and wrote
+    its log at or after ``since`` (epoch seconds): the lines after :data:`ERROR_MARK`, continuation lines
+    included. Sorted by log file; one entry per log."""
+    out = []
+    root = Path(log_dir)
+    if not root.is_dir():
+        return out
+    for p in sorted(root.rglob("*.log")):
+        try:
+            if p.stat().st_mtime < since:
+                continue
+            lines = p.read_text(errors="replace").splitlines()
+        except OSError:
+            continue
+        for i, line in enumerate(lines):
+            k = line.find(ERROR_MARK)
+            if k < 0:
+                continue
+            msg = [line[k + len(ERROR_MARK):].strip()]
+            indent = " " * (len(ERROR_MARK) + 1)
+            msg += [ln[len(indent):] for ln in lines[i + 1:] if ln.startswith(indent)]
+            out.append((str(p), "\n".join(msg)))
+            break
+    return out
 
 
 @contextmanager
@@ -123,3 +194,48 @@ class Progress:
         left = el * (1 - frac) / frac
         self.log.info("%s: %d/%d (%.0f %%), %.1f s elapsed, ~%.1f s left", self.label, done, self.total,
                       100 * frac, el, left)
+
+
+RESUME_HINT = "run the same command again to resume: finished jobs and FE runs are kept (make reproduce, or see README)"
+
+
+def failure_report(log_dir: str | Path = "logs", since: float = 0.0, stream=None) -> None:
+    """Print the messages of :func:`collect_failures` as one block (the workflow's ``onerror`` handler)."""
+    out = stream or sys.stderr
+    found = collect_failures(log_dir, since)
+    if not found:
+        return
+    interrupted = [f for f, m in found if m == "interrupted"]
+    errors = [(f, m) for f, m in found if m != "interrupted"]
+    lines = ["", "=" * 100]
+    if errors:
+        lines.append(f"skidsim: {len(errors)} job(s) stopped on bad input (details in each log):")
+        for f, m in errors:
+            lines.append(f"  {f}:")
+            lines += [f"    {ln}" for ln in m.splitlines()]
+    if interrupted:
+        lines.append(f"skidsim: {len(interrupted)} job(s) interrupted; {RESUME_HINT}")
+    lines.append("=" * 100)
+    print("\n".join(lines), file=out)
+    out.flush()
+
+
+def current_umask() -> int:
+    """The process umask (read from /proc where it exists, so the process umask is never changed, else set and
+    restored at once)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def honour_umask(path: str | Path) -> None:
+    """Give ``path`` the permissions a plain ``open(path, "w")`` would: ``0o666 & ~umask``
+    (``tempfile.mkstemp`` creates files 0600 whatever the umask)."""
+    os.chmod(path, 0o666 & ~current_umask())

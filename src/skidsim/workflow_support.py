@@ -67,6 +67,23 @@ def site_table(config: dict, campaign_dir: str | Path | None) -> pd.DataFrame:
     return df[["site", "section", "scan", "dft"]].copy()
 
 
+def plan_check(config: dict, campaign_dir: str | Path | None, stream=None) -> None:
+    """The workflow's check when it builds its plan (:func:`skidsim.validate.check_plan`): on problems print them
+    (one per line, no traceback) to ``stream`` (stderr) and exit with status 1, so that ``snakemake -n`` already
+    refuses a bad campaign or config."""
+    import sys
+
+    from .validate import check_plan, format_problems
+
+    found = check_plan(config, campaign_dir)
+    if found:
+        out = stream or sys.stderr
+        print(format_problems(found), file=out)
+        print("skidsim: nothing was run; fix the above and run the same command again", file=out)
+        out.flush()
+        raise SystemExit(1)
+
+
 def save_surfaces(path: str | Path, surfaces: dict[str, Surface]) -> None:
     """Store named surfaces (heights in mm, float64) with their spacings in one ``.npz``, atomically."""
     arrays = {}

@@ -8,8 +8,10 @@ An X3P file is a zip archive with
   layout of :class:`skidsim.surface.Surface`);
 * ``bindata/valid.bin`` (optional): one bit per point, least-significant bit first, 1 = valid. It is the only
   way to mark invalid points for the integer types; float types use NaN;
-* ``md5checksum.hex``: ``"<md5 of main.xml> *main.xml"`` (the MD5 of **main.xml**, as ``md5sum`` writes it;
-  SurfaceTopography's writer puts the MD5 of data.bin there, which strict readers, this one included, reject).
+* ``md5checksum.hex``: ``"<md5> *<member>"`` as ``md5sum`` writes it. The openGPS library and surfalize (and this
+  writer) store the MD5 of main.xml (``"<md5> *main.xml"``); SurfaceTopography stores the MD5 of the point data
+  (``"<MD5 IN UPPER CASE> *bindata/data.bin"``). The reader checks the member the file names (hex case ignored);
+  a bare ``<md5>`` must match main.xml or bindata/data.bin. Only a checksum that matches none is an error.
 
 Conventions that change numbers (see ``docs/data-contract.md``):
 
@@ -140,6 +142,30 @@ def _open_zip(path) -> zipfile.ZipFile:
         raise _err(p, "an X3P file (a zip archive with main.xml)", got="not a zip archive") from None
 
 
+def _check_checksum(zf: zipfile.ZipFile, checksum_name: str, xml_bytes: bytes, path) -> None:
+    """Verify the checksum file as its writer meant it (module docstring): ``<md5> *<member>`` (md5sum's binary
+    mode; ``<md5>  <member>`` text mode) checks the member it names; a bare ``<md5>`` must match main.xml or the
+    point data. Hex case is ignored. Raises when the named member is missing or no candidate matches."""
+    text = zf.read(checksum_name).decode("ascii", "replace").strip()
+    parts = text.split(None, 1)
+    if not parts:
+        raise _err(path, f"{checksum_name} holding an MD5 (of main.xml)", got="empty file")
+    stated = parts[0].lower()
+    named = parts[1].strip().lstrip("*").strip() if len(parts) > 1 else ""
+    if named:
+        if named not in zf.namelist():
+            raise _err(path, f"{checksum_name} naming a member of the archive", got=named)
+        candidates = {named: xml_bytes if named == MAIN_XML else zf.read(named)}
+    else:
+        candidates = {MAIN_XML: xml_bytes}
+        if DATA_BIN in zf.namelist():
+            candidates[DATA_BIN] = zf.read(DATA_BIN)
+    actual = {name: hashlib.md5(data).hexdigest() for name, data in candidates.items()}
+    if stated not in actual.values():
+        want = " or ".join(f"the MD5 of {n} ({h})" for n, h in actual.items())
+        raise _err(path, f"{checksum_name} holding {want}", got=parts[0], hint="a corrupt or altered archive")
+
+
 def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
     names = set(zf.namelist())
     if MAIN_XML not in names:
@@ -151,16 +177,11 @@ def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
         raise _err(path, "well-formed XML in main.xml", got=str(exc)) from None
     _strip_namespaces(root)
 
-    # Record4: checksum of main.xml (mandatory in ISO 25178-72; the MD5 of main.xml, not of data.bin)
+    # Record4: the checksum file (mandatory in ISO 25178-72); which member it covers: _check_checksum
     checksum_name = _text(root.find("Record4"), "ChecksumFile", path, required=False) or CHECKSUM_FILE
     if checksum_name not in names:
         raise _err(path, f"checksum file {checksum_name} holding the MD5 of main.xml", got="missing")
-    stated = zf.read(checksum_name).decode("ascii", "replace").split()
-    actual = hashlib.md5(xml_bytes).hexdigest()
-    if not stated or stated[0].lower() != actual:
-        got = stated[0] if stated else "empty file"
-        hint = "a corrupt header, or a writer that stored the MD5 of data.bin there, as SurfaceTopography does"
-        raise _err(path, f"{checksum_name} holding the MD5 of main.xml ({actual})", got=got, hint=hint)
+    _check_checksum(zf, checksum_name, xml_bytes, path)
 
     record1 = root.find("Record1")
     if record1 is None:
@@ -254,10 +275,11 @@ def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
 def read_x3p_header(path) -> X3PHeader:
     """Open an X3P archive and check it without decoding the heights.
 
-    Checks: a zip archive, ``main.xml`` present and well-formed, the checksum file holds the MD5 of main.xml,
-    feature type SUR, incremental X/Y axes, absolute Z axis with type I/L/F/D, ``data.bin`` and ``valid.bin``
-    sizes match SizeX * SizeY. The optional MD5 of data.bin is **not** checked here (it needs the whole data;
-    :func:`read_x3p` checks it). Raises :class:`ScanFormatError` naming the file and what was expected.
+    Checks: a zip archive, ``main.xml`` present and well-formed, the checksum file holds the MD5 of the member it
+    names (main.xml; bindata/data.bin as SurfaceTopography writes), feature type SUR, incremental X/Y axes,
+    absolute Z axis with type I/L/F/D, ``data.bin`` and ``valid.bin`` sizes match SizeX * SizeY. The optional
+    MD5 that main.xml states for data.bin is **not** checked here (:func:`read_x3p` checks it). Raises
+    :class:`ScanFormatError` naming the file and what was expected.
     """
     with _open_zip(path) as zf:
         return _parse_header(zf, path)

@@ -63,6 +63,7 @@ rule calibration_summary:
         calibrations=expand(f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json", site=SITES, method=METHODS),
         validations=expand(f"{RESULTS}/sites/{{site}}/validation.parquet", site=SITES),
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
+        ifi=f"{RESULTS}/ifi/ifi.csv",  # the PIARC/IFI speed model beside the FE laws (rule ifi in ifi.smk)
     output:
         table2=report(f"{RESULTS}/calibration/table2.csv", caption="../report/table2.csv.rst",
                       category="3 Back-calculation"),

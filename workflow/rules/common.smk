@@ -10,7 +10,7 @@ sys.path.insert(0, str(Path(workflow.basedir) / "src"))  # the library, also wit
 
 validate(config, schema="../schemas/config.schema.yaml")
 
-from skidsim.workflow_support import site_table  # noqa: E402
+from skidsim.workflow_support import plan_check, site_table  # noqa: E402
 
 RESULTS = "results"
 SYNTHETIC = not config.get("campaign")
@@ -20,9 +20,14 @@ else:
     CAMPAIGN_DIR = Path(config["campaign"])
 SITES_CSV = str(CAMPAIGN_DIR / "sites.csv")
 
+# Before any plan is built: the config cross-checks and, for a user campaign, sites.csv, its paths and the DFT
+# traces (skidsim.validate, level "table"). Problems are printed once, one per line, and the run stops (also
+# `snakemake -n`). The scan contents are checked by the rule validate_campaign, on which every analysis rule
+# depends.
+plan_check(config, CAMPAIGN_DIR if not SYNTHETIC else None)
+
 # The site table is known when the workflow is parsed: designed from config for the synthetic campaign, read
-# (lightly: ids and sections) from the user's sites.csv otherwise. The full validation is the rule
-# validate_campaign, on which every analysis rule depends.
+# from the user's sites.csv otherwise.
 SITE_TABLE = site_table(config, CAMPAIGN_DIR if not SYNTHETIC else None)
 SITES = list(SITE_TABLE["site"])
 SECTIONS = list(dict.fromkeys(SITE_TABLE["section"]))

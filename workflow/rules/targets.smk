@@ -19,6 +19,7 @@ if not POPULATION:
 
 def all_targets():
     targets = [f"{RESULTS}/texture/table4.csv", f"{RESULTS}/calibration/figure10.png"]
+    targets += [f"{RESULTS}/ifi/ifi.csv", f"{RESULTS}/ifi/validation.csv"]
     if config["mesh_study"]["sizes_mm"]:
         targets.append(f"{RESULTS}/mesh_study/figure9.png")
     if POPULATION:

@@ -2,13 +2,16 @@
 
 
 rule despeckle:
-    """Limiting filter (study) or robust variant on every scan line; invalid points filled."""
+    """Instrument spikes removed (default rule local; the study's limiting filter by name); scan quality measured
+    and checked against config quality: (warn or stop); invalid points filled. The quality limits are read from
+    the config, not passed as params, so that changing a limit re-runs only scan_quality, not the texture chain."""
     input:
         scan=scan_of,
         ingest=INGEST,
     output:
         surfaces=temp(f"{RESULTS}/sites/{{site}}/despeckled.npz"),
         stats=f"{RESULTS}/sites/{{site}}/despeckle.json",
+        quality=f"{RESULTS}/sites/{{site}}/quality.json",
     params:
         cfg=config["texture"],
     log:
@@ -110,10 +113,35 @@ rule figure7:
         "../scripts/figure7.py"
 
 
+rule scan_quality:
+    """Scan quality of every site in one table and figure (dropouts, despeckle, height step, tilt, usable length);
+    flagged sites are logged as WARNINGs and marked in the report."""
+    input:
+        quality=expand(f"{RESULTS}/sites/{{site}}/quality.json", site=SITES),
+    params:
+        quality=config.get("quality", {}),
+        strip_length_mm=config["mesh"]["length_mm"],
+    output:
+        table=report(f"{RESULTS}/texture/quality.csv", caption="../report/quality.rst", category="1 Texture",
+                     subcategory="Scan quality"),
+        figure=report(f"{RESULTS}/texture/quality.png", caption="../report/quality.rst", category="1 Texture",
+                      subcategory="Scan quality"),
+    log:
+        "logs/scan_quality.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
+    script:
+        "../scripts/scan_quality.py"
+
+
 rule texture_campaign:
-    """Join all sites with their metadata; the study's Table 4 statistics; distributions."""
+    """Join all sites with their metadata; the study's Table 4 statistics; distributions. Needs the scan-quality
+    table, so that no campaign texture table is published before every scan's quality was checked."""
     input:
         ingest=INGEST,
+        quality=rules.scan_quality.output.table,
         tables=expand(f"{RESULTS}/sites/{{site}}/texture.parquet", site=SITES),
     output:
         long=f"{RESULTS}/texture/texture_long.parquet",

@@ -1,4 +1,7 @@
-"""Snakemake adapter: Table 2, the method comparison (FE runs, steps, wall time, fit), Figure 10, curves."""
+"""Snakemake adapter: Table 2, the method comparison (FE runs, steps, wall time, fit), Figure 10, curves.
+
+With an input named ``ifi`` (results/ifi/ifi.csv), the PIARC/IFI speed model (method ``piarc_ifi``) is added to
+fit_statistics.csv and Figure 10 beside the FE-calibrated methods; validation.parquet stays FE-only."""
 from pathlib import Path
 
 import pandas as pd
@@ -17,7 +20,14 @@ for path in snakemake.input.calibrations:
 vtable = pd.concat([pd.read_parquet(p) for p in snakemake.input.validations], ignore_index=True)
 comparison = calibration.comparison_table(results, vtable, methods=methods)
 t2 = calibration.table2(results, methods=methods)
-stats = calibration.figure10_statistics(vtable)
+ifi_csv = getattr(snakemake.input, "ifi", None)
+vfig = vtable
+if ifi_csv:
+    from skidsim import ifi
+
+    model = ifi.model_validation_rows(pd.read_csv(ifi_csv), vtable)
+    vfig = pd.concat([vtable[model.columns], model], ignore_index=True)
+stats = calibration.figure10_statistics(vfig)
 params = pd.DataFrame([{"site": s, "method": m, "mu_s": r.params.mu_s, "mu_k": r.params.mu_k,
                         "alpha": r.params.alpha, "converged": r.converged}
                        for s, per in results.items() for m, r in per.items()])
@@ -29,6 +39,6 @@ write_csv(snakemake.output.comparison, comparison)
 write_csv(snakemake.output.stats, stats)
 write_parquet(snakemake.output.validation, vtable)
 write_parquet(snakemake.output.params, params)
-plot_figure10(vtable, snakemake.output.figure10)
+plot_figure10(vfig, snakemake.output.figure10)
 plot_calibration_curves(results, measured, snakemake.output.curves, runs=runs)
 log.info("\n%s", stats.to_string())

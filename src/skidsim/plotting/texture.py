@@ -1,4 +1,4 @@
-"""Texture figures: the study's Figure 7 panels, the despeckle comparison, campaign distributions."""
+"""Texture figures: the study's Figure 7 panels, the despeckle comparisons, campaign distributions, scan quality."""
 
 from __future__ import annotations
 
@@ -84,3 +84,65 @@ def plot_campaign_distributions(campaign_wide: pd.DataFrame, path: str | Path,
         for ax in axes.ravel()[len(params):]:
             ax.set_visible(False)
         axes.ravel()[0].legend()
+
+
+#: (column of the quality table, axis label, key of the limit in QualityOptions, "max" | "min")
+_QUALITY_PANELS = (
+    ("dropout_pct", "dropouts (% of points)", "max_dropout_pct", "max"),
+    ("replaced_pct", "replaced by despeckle (% of points)", "max_replaced_pct", "max"),
+    ("height_step_mm", "height step (mm)", None, None),
+    ("spikes_found", "spikes found (clusters)", None, None),
+    ("tilt_deg", "tilt of the plane (deg)", "max_tilt_deg", "max"),
+    ("usable_length_mm", "usable strip length along x (mm)", "min_usable_length_mm", "min"),
+)
+
+
+def plot_scan_quality(table: pd.DataFrame, limits: dict, path: str | Path) -> None:
+    """Six panels, one bar per site: the scan-quality measures of ``table`` (skidsim.texture.quality), the
+    limits of ``limits`` (QualityOptions fields) as dashed lines; a bar beyond its limit in red, the names of
+    flagged sites (``status`` not ok) in red."""
+    sites = table["site"].astype(str).tolist()
+    flagged = (table["status"] != "ok").to_numpy() if "status" in table else np.zeros(len(table), bool)
+    n = max(len(sites), 1)
+    with figure(path, nrows=3, ncols=2, figsize=(max(8.0, 0.28 * n + 4.0), 8.5)) as (fig, axes):
+        for ax, (col, label, lim_key, kind) in zip(axes.ravel(), _QUALITY_PANELS):
+            values = table[col].to_numpy(dtype=float)
+            lim = limits.get(lim_key) if lim_key else None
+            beyond = np.zeros(values.size, bool)
+            if lim is not None:
+                beyond = values > float(lim) if kind == "max" else values < float(lim)
+            ax.bar(np.arange(len(sites)), values, color=np.where(beyond, "#d62728", COLORS["ours"]))
+            if lim is not None:
+                ax.axhline(float(lim), color="#333333", ls="--", lw=0.9,
+                           label=f"{'most' if kind == 'max' else 'least'} allowed: {float(lim):g}")
+                ax.legend(loc="best")
+            ax.set_ylabel(label)
+            ax.set_xticks(np.arange(len(sites)))
+            ax.set_xticklabels(sites, rotation=90, fontsize=6 if n > 20 else 8)
+            for tick, bad in zip(ax.get_xticklabels(), flagged):
+                if bad:
+                    tick.set_color("#d62728")
+        n_flag = int(flagged.sum())
+        fig.suptitle(f"Scan quality, {len(sites)} sites: {n_flag} flagged (red names; red bars beyond a limit)"
+                     if n_flag else f"Scan quality, {len(sites)} sites: none beyond the limits")
+
+
+def plot_despeckle_flat_binder(cases: list[dict], path: str | Path) -> None:
+    """Before/after figure of the despeckle rules on flat-binder scans: per case (dict with ``label``, ``dx_mm``,
+    ``row`` (one profile, mm, as scanned), ``rules`` {rule: despeckled profile}, ``replaced_pct`` {rule: %},
+    ``mpd_err_pct`` {rule: %} and optionally ``x0_mm``, the start of the shown window), 30 mm of the profile and
+    each rule's result, the replaced shares and MPD errors in the legend."""
+    colors = {"mad": "#d95f02", "tukey": "#7570b3", "local": "#1b9e77", "study": "#e7298a"}
+    with figure(path, nrows=len(cases), ncols=1, figsize=(9.0, 2.6 * len(cases))) as (fig, axes):
+        for ax, c in zip(np.atleast_1d(axes), cases):
+            j0 = int(round(c.get("x0_mm", 0.0) / c["dx_mm"]))
+            j1 = min(c["row"].size, j0 + int(round(30.0 / c["dx_mm"])) + 1)
+            x = np.arange(j0, j1) * c["dx_mm"]
+            ax.plot(x, c["row"][j0:j1], color=COLORS["measured"], lw=1.6, label="as scanned (with spikes)")
+            for name, prof in c["rules"].items():
+                ax.plot(x, prof[j0:j1], color=colors.get(name, "#666666"), lw=0.9,
+                        label=f"{name}: {c['replaced_pct'][name]:.2f} % replaced, MPD {c['mpd_err_pct'][name]:+.1f} %")
+            ax.set_title(c["label"])
+            ax.set_xlabel("x (mm)")
+            ax.set_ylabel("height (mm)")
+            ax.legend(loc="upper right", fontsize=7)

@@ -2,7 +2,8 @@
 
 Public API (stable names the workflow calls)::
 
-    despeckle(surface, method="mad", k=None, axis=1, replace=None) -> (Surface, n_replaced)
+    despeckle(surface, method="local", k=None, axis=1, replace=None) -> (Surface, n_replaced)
+    despeckle_detail(surface, ...) -> DespeckleResult (surface, mask of replaced points, height step)
     fill_invalid(surface, method="linear") -> Surface
     separate_bands(surface, macro=(0.5, 50.0), order=2, form="plane", fill="linear", workers=1)
         -> {"raw", "macro", "micro"} Surfaces
@@ -13,15 +14,15 @@ Public API (stable names the workflow calls)::
 Every convention that changes a number is documented in ``docs/texture.md`` and in the module docstrings.
 """
 
-from .despeckle import despeckle
+from .despeckle import despeckle, despeckle_detail
 from .filters import fill_invalid, remove_form, separate_bands
 from .mpd import MPDResult, mean_profile_depth
 from .parameters import GROUPS, UNITS, TextureOptions, areal_parameters
 
 mpd = mean_profile_depth
 
-__all__ = ["despeckle", "fill_invalid", "remove_form", "separate_bands", "MPDResult", "mean_profile_depth", "mpd",
-           "GROUPS", "UNITS", "TextureOptions", "areal_parameters", "campaign_table", "characterise",
+__all__ = ["despeckle", "despeckle_detail", "fill_invalid", "remove_form", "separate_bands", "MPDResult",
+           "mean_profile_depth", "mpd", "GROUPS", "UNITS", "TextureOptions", "areal_parameters", "campaign_table", "characterise",
            "table4_statistics", "texture_table", "write_texture_table"]
 
 #: names of .table (pandas) imported on first use (PEP 562): a step that only despeckles, filters or computes

@@ -1,37 +1,120 @@
-"""Mean profile depth (MPD) per ISO 13473-1:2019 from the profiles of an areal scan.
+"""Mean profile depth (MPD) per ISO 13473-1:2019 of line profiles.
 
-Procedure (as captif-slp implements the standard; docs/texture.md), per profile (one scan row along x by
-default, ``axis=1``):
+One procedure (:func:`profile_segments`) serves the profiles of a laser profilometer (read by
+:mod:`skidsim.profiles`) and the rows of an areal scan (:func:`mean_profile_depth`). Its conventions are those of
+captif-slp 0.22 (MIT), the reference implementation (docs/texture.md), per profile of heights z (mm) at increasing
+distances x (mm):
 
-1. Dropouts (NaN): the share of dropouts is counted per 100 mm segment on the original samples; then dropouts
-   are linearly interpolated (ends held at the nearest valid value).
-2. Resampling to 0.5 mm by **bin mean**: sample ``j`` at ``x = j dx`` goes to bin ``floor(x / 0.5 mm)``; the
-   bin's height is the mean of its samples (point sampling instead moves MPD by about +1.6 %).
-3. Spikes: a height step ``|z[i+1] - z[i]| >= spike_alpha * 0.5 mm`` (alpha = 3, i.e. 1.5 mm) marks both
-   samples as spikes; they are removed and re-interpolated.
-4. Low-pass: 2nd-order Butterworth (scipy ``butter``, cut-off wavelength 2.4 mm) applied zero-phase
-   (``sosfiltfilt``) to the whole resampled profile.
-5. Segments of 100 mm (200 samples) from the profile start (a shorter remainder is dropped); the least-squares
-   slope is removed per segment; MSD = (max of the first half + max of the second half) / 2 - segment mean.
-6. A segment is invalid if more than 10 % of its original samples were dropouts or more than 5 % of its resampled
-   samples were spikes. MPD = mean MSD of the valid segments, ``sd_mm`` their sample SD (ddof = 1).
-   ETD = 1.1 MPD (ISO 13473-1:2019; the 1997 edition used 0.2 + 0.8 MPD).
+0. Reference plates (``detect_plates``, off by default): heights above ``plate_threshold_mm`` (30 mm; missing
+   heights take the last valid height for this test) are plates. The profile starts ``plate_buffer_mm`` (2 mm)
+   after the last plate edge in its first half (by sample count) and ends 2 mm before the first plate edge in its
+   second half; distances are then counted from the new start.
+1. Dropouts (NaN) are flagged on the original samples; then filled: held at the first / last valid height at the
+   ends, linear in distance inside.
+2. Resampling to ``resample_mm`` (0.5 mm) by **bin mean**: a sample at x goes to bin k = ceil(x / 0.5 mm) (x = 0
+   joins bin 1); bin k sits at x = 0.5 k mm; bin means rounded to 1e-6 mm. A profile whose mean spacing is already
+   exactly 0.5 mm is used as it is. (Point sampling instead moves MPD by about +1.6 %.)
+3. Spikes: a step ``|z[k+1] - z[k]| >= spike_alpha * s`` (s: mean resampled spacing, alpha = 3: 1.5 mm) marks both
+   samples as spikes; they are removed and refilled as in 1.
+4. Low-pass: 2nd-order Butterworth (scipy ``butter``), cut-off wavelength ``lowpass_mm`` (2.4 mm), applied
+   zero-phase (``sosfiltfilt``) to the whole resampled profile.
+5. Segments of ``segment_mm`` (100 mm) in absolute distance: (0, L], (L, 2L], ... (the first closed at 0;
+   negative distances belong to none). A segment holding fewer than 90 % of L / 0.5 mm resampled samples is not
+   evaluated (so a remainder of 90 mm or more counts). Per segment the least-squares line is removed; MSD = (max of
+   the first half + max of the second half) / 2 - segment mean, the halves split at n // 2.
+6. A segment is invalid if more than ``max_dropout_pct`` (10 %) of its original samples were dropouts or more than
+   ``max_spike_pct`` (5 %) of its resampled samples were spikes. MPD = mean MSD of the valid segments, ``sd_mm``
+   their sample SD (ddof = 1). ETD = 1.1 MPD (ISO 13473-1:2019; the 1997 edition used 0.2 + 0.8 MPD).
+
+A profile shorter than one evaluable segment gives no segment; the MPD is then NaN ("not available") and one
+warning is logged.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import logging
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from skidsim.errors import ConfigError
 from skidsim.surface import Surface
 
-from .filters import _interp_rows
+log = logging.getLogger("skidsim")
+
+#: a segment is evaluated when it holds at least this share of its nominal number of resampled samples
+MIN_SEGMENT_COVERAGE = 0.9
+
+
+@dataclass(frozen=True)
+class MPDOptions:
+    """Options of the MPD procedure (module docstring); lengths in mm, shares in %."""
+
+    segment_mm: float = 100.0
+    resample_mm: float = 0.5
+    lowpass_mm: float | None = 2.4
+    spike_alpha: float = 3.0
+    max_dropout_pct: float = 10.0
+    max_spike_pct: float = 5.0
+    detect_plates: bool = False
+    plate_threshold_mm: float = 30.0
+    plate_buffer_mm: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("segment_mm", "resample_mm", "spike_alpha", "plate_buffer_mm"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ConfigError(f"MPD option {name}: expected a positive number, got {v!r}")
+        for name in ("max_dropout_pct", "max_spike_pct"):
+            v = getattr(self, name)
+            if not 0 <= v <= 100:
+                raise ConfigError(f"MPD option {name}: expected a share in % from 0 to 100, got {v!r}")
+        if not np.isfinite(self.plate_threshold_mm):
+            raise ConfigError(f"MPD option plate_threshold_mm: expected a height in mm, "
+                              f"got {self.plate_threshold_mm!r}")
+        if self.segment_mm < 4 * self.resample_mm:
+            raise ConfigError(f"MPD option segment_mm: expected at least 4 resampled samples "
+                             f"({4 * self.resample_mm} mm), got {self.segment_mm!r}")
+        if self.lowpass_mm is not None and not self.lowpass_mm > 2 * self.resample_mm:
+            raise ConfigError(f"MPD option lowpass_mm: expected null or a wavelength above 2 x resample_mm "
+                             f"({2 * self.resample_mm} mm), got {self.lowpass_mm!r}")
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Every evaluated segment of a set of profiles (one entry per segment).
+
+    ``profile``: index of the profile; ``start_mm``/``end_mm``: the segment (start, end] in the input's distances
+    (plate trimming undone); ``msd_mm``: mean segment depth (mm); ``dropout_pct``: dropouts among its original
+    samples (%); ``spike_pct``: spikes among its resampled samples (%); ``valid``. Per profile:
+    ``trim_start_mm``/``trim_end_mm``: where plate detection cut it (NaN: not cut).
+    """
+
+    profile: np.ndarray
+    start_mm: np.ndarray
+    end_mm: np.ndarray
+    msd_mm: np.ndarray
+    dropout_pct: np.ndarray
+    spike_pct: np.ndarray
+    valid: np.ndarray
+    trim_start_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    trim_end_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def to_frame(self):
+        """The segments as a DataFrame (columns as the attributes, mm and %)."""
+        import pandas as pd
+
+        return pd.DataFrame({"profile": self.profile, "start_mm": self.start_mm, "end_mm": self.end_mm,
+                             "msd_mm": self.msd_mm, "dropout_pct": self.dropout_pct,
+                             "spike_pct": self.spike_pct, "valid": self.valid})
 
 
 @dataclass(frozen=True)
 class MPDResult:
-    """MPD and its SD over segments (mm), segment counts, ETD = 1.1 MPD (mm), and the MSD of each valid segment."""
+    """MPD and its SD over segments (mm), segment counts, ETD = 1.1 MPD (mm), and the MSD of each valid segment.
+
+    ``mpd_mm`` is NaN when no segment could be evaluated (profiles shorter than one segment) or none was valid.
+    """
 
     mpd_mm: float
     sd_mm: float
@@ -41,68 +124,167 @@ class MPDResult:
     msd_mm: np.ndarray
 
 
-def _fill(a: np.ndarray) -> None:
-    empty = np.isnan(a).all(axis=1)
-    a[empty] = 0.0
-    _interp_rows(a, "linear")
+def _fill(z: np.ndarray, x: np.ndarray) -> None:
+    """Fill NaNs of each row of ``z`` in place: held at the ends, linear in ``x`` inside; empty rows become 0."""
+    for i in np.flatnonzero(np.isnan(z).any(axis=1)):
+        ok = ~np.isnan(z[i])
+        z[i, ~ok] = np.interp(x[~ok], x[ok], z[i, ok]) if ok.any() else 0.0
 
 
-def mean_profile_depth(surface: Surface, *, axis: int = 1, segment_mm: float = 100.0, resample_mm: float = 0.5,
-                       lowpass_mm: float | None = 2.4, spike_alpha: float = 3.0, max_dropout_pct: float = 10.0,
-                       max_spike_pct: float = 5.0, etd_factor: float = 1.1) -> MPDResult:
-    """MPD (mm) of the profiles of ``surface`` along ``axis`` (1: rows along x). See the module docstring."""
-    if axis not in (0, 1):
-        raise ValueError(f"mean_profile_depth: axis must be 0 or 1, got {axis!r}")
-    h = surface.heights if axis == 1 else surface.heights.T
-    step = surface.dx if axis == 1 else surface.dy
-    n = h.shape[1]
-    bins = np.floor(np.arange(n) * step / resample_mm + 1e-9).astype(np.int64)
-    n_bins = int(bins[-1]) + 1
-    seg_n = int(round(segment_mm / resample_mm))
-    n_seg = n_bins // seg_n
-    if n_seg == 0:
-        raise ValueError(f"mean_profile_depth: {surface.name!r}: profiles are {n * step:.1f} mm long, "
-                         f"shorter than one {segment_mm} mm segment")
-    drop = np.isnan(h)
-    # dropout share per segment on the original samples
-    seg_of_sample = bins // seg_n
-    in_seg = seg_of_sample < n_seg
-    counts = np.bincount(seg_of_sample[in_seg], minlength=n_seg)
-    drop_per_seg = np.stack([drop[:, seg_of_sample == s].sum(axis=1) for s in range(n_seg)], axis=1)
-    dropout_bad = drop_per_seg > max_dropout_pct / 100.0 * counts[None, :]
-    work = np.array(h, dtype=np.float64)
+def _resample(z: np.ndarray, x: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Bin means at ``step`` (module docstring, step 2): ``(heights, positions)``."""
+    if len(x) > 1 and np.diff(x).mean() == step:
+        return z.copy(), x.copy()
+    g = np.ceil(x / step)
+    if g[0] == 0:
+        g[0] = 1
+    starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
+    widths = np.diff(np.r_[starts, len(x)])
+    return np.round(np.add.reduceat(z, starts, axis=1) / widths, 6), g[starts] * step
+
+
+def _segment_index(x: np.ndarray, length: float) -> np.ndarray:
+    """Segment of each distance: (0, L] -> 0, (L, 2L] -> 1, ...; 0 -> 0; negative -> -1."""
+    s = np.ceil(x / length) - 1
+    s[x == 0] = 0
+    s[x < 0] = -1
+    return s.astype(np.int64)
+
+
+def find_plates(x: np.ndarray, z: np.ndarray, threshold_mm: float = 30.0,
+                buffer_mm: float = 2.0) -> tuple[float | None, float | None]:
+    """Where reference plates end and begin (module docstring, step 0): ``(start_mm, end_mm)``, None where the
+    profile has no plate edge in that half."""
+    idx = np.where(np.isnan(z), 0, np.arange(len(z)))
+    held = z[np.maximum.accumulate(idx)]  # forward-filled; leading NaNs stay NaN
+    plate = np.nan_to_num(held, nan=-np.inf) > threshold_mm
+    if not plate.any():
+        return None, None
+    edge = np.r_[False, plate[1:] != plate[:-1]]
+    mid = int(np.ceil(len(z) / 2))
+    first, second = np.flatnonzero(edge[:mid]), np.flatnonzero(edge[mid:])
+    start = float(x[first[-1]] + buffer_mm) if first.size else None
+    end = float(x[mid + second[0]] - buffer_mm) if second.size else None
+    return start, end
+
+
+def _block(z: np.ndarray, x: np.ndarray, o: MPDOptions, offset_mm: float = 0.0) -> list[tuple]:
+    """Segments of the rows of ``z`` (profiles sharing distances ``x``): a list of per-segment tuples."""
+    z = np.array(z, dtype=np.float64)
+    drop = np.isnan(z)
     if drop.any():
-        _fill(work)
-    starts = np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])
-    widths = np.diff(np.r_[starts, n])
-    res = np.add.reduceat(work, starts, axis=1) / widths[None, :]
-    del work
-    # spikes
-    thr = spike_alpha * resample_mm
-    jump = np.abs(np.diff(res, axis=1)) >= thr
+        _fill(z, x)
+    res, xr = _resample(z, x, o.resample_mm)
+    del z
+    seg_x, seg_r = _segment_index(x, o.segment_mm), _segment_index(xr, o.segment_mm)
+    nominal = o.segment_mm / o.resample_mm
+    ids, counts = np.unique(seg_r[seg_r >= 0], return_counts=True)
+    ids = ids[counts / nominal >= MIN_SEGMENT_COVERAGE]
+    if ids.size == 0:
+        return []
     spike = np.zeros(res.shape, dtype=bool)
-    spike[:, 1:] |= jump
-    spike[:, :-1] |= jump
-    if spike.any():
-        res[spike] = np.nan
-        _fill(res)
-    if lowpass_mm:
+    if len(xr) > 1:
+        jump = np.abs(np.diff(res, axis=1)) >= round(o.spike_alpha * np.diff(xr).mean(), 6)
+        spike[:, 1:] |= jump
+        spike[:, :-1] |= jump
+        if spike.any():
+            res[spike] = np.nan
+            _fill(res, xr)
+    if o.lowpass_mm:
         from scipy import signal  # imported here: 0.8 s of start-up that only MPD needs
 
-        sos = signal.butter(2, (1.0 / lowpass_mm) / (0.5 / resample_mm), btype="low", output="sos")
+        sos = signal.butter(2, (1.0 / o.lowpass_mm) / (0.5 / o.resample_mm), btype="low", output="sos")
         res = signal.sosfiltfilt(sos, res, axis=1)
-    segs = res[:, :n_seg * seg_n].reshape(res.shape[0], n_seg, seg_n)
-    x = np.arange(seg_n) - (seg_n - 1) / 2.0
-    mean = segs.mean(axis=2, keepdims=True)
-    slope = (segs * x).sum(axis=2, keepdims=True) / (x * x).sum()
-    lev = segs - mean - slope * x
-    half = seg_n // 2
-    msd = 0.5 * (lev[:, :, :half].max(axis=2) + lev[:, :, half:].max(axis=2))  # segment mean is 0 after leveling
-    spike_share = spike[:, :n_seg * seg_n].reshape(res.shape[0], n_seg, seg_n).mean(axis=2)
-    valid = ~dropout_bad & (spike_share <= max_spike_pct / 100.0)
-    vals = msd[valid]
-    n_total = int(msd.size)
+    out = []
+    for s in ids:
+        take = seg_r == s
+        n = int(take.sum())
+        xs = xr[take]
+        zs = res[:, take]
+        xm = xs - xs.mean()
+        slope = (zs * xm).sum(axis=1, keepdims=True) / (xm * xm).sum()
+        lev = np.round(zs - zs.mean(axis=1, keepdims=True) - slope * xm, 6)
+        half = n >> 1
+        msd = 0.5 * (lev[:, :half].max(axis=1) + lev[:, half:].max(axis=1)) - lev.mean(axis=1)
+        d_ratio = drop[:, seg_x == s].mean(axis=1) if (seg_x == s).any() else np.zeros(len(msd))
+        s_ratio = spike[:, take].mean(axis=1)
+        valid = (d_ratio <= o.max_dropout_pct / 100.0) & (s_ratio <= o.max_spike_pct / 100.0)
+        for i in range(len(msd)):
+            out.append((i, offset_mm + s * o.segment_mm, offset_mm + (s + 1) * o.segment_mm, msd[i],
+                        100.0 * d_ratio[i], 100.0 * s_ratio[i], bool(valid[i])))
+    return out
+
+
+def profile_segments(heights: np.ndarray, distance_mm: np.ndarray, options: MPDOptions | None = None,
+                     **kwargs) -> Segments:
+    """Evaluate the segments of one profile (1-D ``heights``) or of several sharing distances (2-D, one profile
+    per row), heights and distances in mm, NaN heights are dropouts. ``options`` or keyword arguments: the fields
+    of :class:`MPDOptions`."""
+    o = options if options is not None else MPDOptions(**kwargs)
+    z = np.atleast_2d(np.asarray(heights, dtype=np.float64))
+    x = np.asarray(distance_mm, dtype=np.float64)
+    if x.ndim != 1 or z.shape[1] != len(x):
+        raise ValueError(f"profile_segments: {z.shape[1]} heights per profile but {x.shape} distances")
+    if len(x) > 1 and not (np.diff(x) > 0).all():
+        raise ValueError("profile_segments: distances must increase strictly")
+    rows: list[tuple] = []
+    trim = np.full((len(z), 2), np.nan)
+    if not o.detect_plates:
+        rows = _block(z, x, o)
+    else:
+        for i, zi in enumerate(z):
+            start, end = find_plates(x, zi, o.plate_threshold_mm, o.plate_buffer_mm)
+            keep = np.ones(len(x), dtype=bool)
+            if end:
+                keep &= x < end
+                trim[i, 1] = end
+            if start:
+                keep &= x >= start
+                trim[i, 0] = start
+            off = start or 0.0
+            if keep.sum() < 2:
+                continue
+            rows += [(i, *r[1:]) for r in _block(zi[keep][None, :], x[keep] - off, o, offset_mm=off)]
+    rows.sort(key=lambda r: (r[0], r[1]))
+    cols = list(zip(*rows)) if rows else [[]] * 7
+    return Segments(profile=np.asarray(cols[0], dtype=np.int64), start_mm=np.asarray(cols[1], dtype=float),
+                    end_mm=np.asarray(cols[2], dtype=float), msd_mm=np.asarray(cols[3], dtype=float),
+                    dropout_pct=np.asarray(cols[4], dtype=float), spike_pct=np.asarray(cols[5], dtype=float),
+                    valid=np.asarray(cols[6], dtype=bool), trim_start_mm=trim[:, 0], trim_end_mm=trim[:, 1])
+
+
+def summarise(segments: Segments, *, etd_factor: float = 1.1, name: str = "", profile_mm: float | None = None,
+              segment_mm: float = 100.0) -> MPDResult:
+    """MPD, SD, counts and ETD of evaluated segments; NaN MPD and one warning when no segment is valid
+    (``profile_mm``: the profiles' length, for that warning)."""
+    vals = segments.msd_mm[segments.valid]
+    n_total = int(segments.msd_mm.size)
+    who = f"{name}: " if name else ""
+    if n_total == 0:
+        length = f"profiles are {profile_mm:.2f} mm long, " if profile_mm is not None else ""
+        log.warning("%sMPD not available: %sshorter than one %g mm segment (at least %g mm needed)", who, length,
+                    segment_mm, MIN_SEGMENT_COVERAGE * segment_mm)
+    elif vals.size == 0:
+        log.warning("%sMPD not available: all %d segments are invalid (dropouts or spikes)", who, n_total)
     mpd = float(vals.mean()) if vals.size else np.nan
     sd = float(vals.std(ddof=1)) if vals.size > 1 else np.nan
     return MPDResult(mpd_mm=mpd, sd_mm=sd, n_segments=n_total, n_invalid_segments=int(n_total - vals.size),
                      etd_mm=etd_factor * mpd, msd_mm=vals)
+
+
+def mean_profile_depth(surface: Surface, *, axis: int = 1, segment_mm: float = 100.0, resample_mm: float = 0.5,
+                       lowpass_mm: float | None = 2.4, spike_alpha: float = 3.0, max_dropout_pct: float = 10.0,
+                       max_spike_pct: float = 5.0, detect_plates: bool = False, plate_threshold_mm: float = 30.0,
+                       etd_factor: float = 1.1) -> MPDResult:
+    """MPD (mm) of the profiles of ``surface`` along ``axis`` (1: rows along x, at x = j dx). See the module
+    docstring; NaN with one warning when the profiles are shorter than one evaluable segment."""
+    if axis not in (0, 1):
+        raise ValueError(f"mean_profile_depth: axis must be 0 or 1, got {axis!r}")
+    h = surface.heights if axis == 1 else surface.heights.T
+    step = surface.dx if axis == 1 else surface.dy
+    o = MPDOptions(segment_mm=segment_mm, resample_mm=resample_mm, lowpass_mm=lowpass_mm, spike_alpha=spike_alpha,
+                   max_dropout_pct=max_dropout_pct, max_spike_pct=max_spike_pct, detect_plates=detect_plates,
+                   plate_threshold_mm=plate_threshold_mm)
+    x = np.arange(h.shape[1]) * step
+    segs = profile_segments(h, x, o)
+    return summarise(segs, etd_factor=etd_factor, name=surface.name, profile_mm=float(x[-1]), segment_mm=segment_mm)

@@ -55,13 +55,15 @@ class TextureOptions:
     butterworth_order; acf_threshold (s of Sal/Str); acf_on_border ("nan"/"bound"); material ratios
     vm_p_pct / vv_q_pct (%); mr_classes; pruning_pct and pruning_reference ("Sz"/"Sq"); exclude_edge;
     spc_half_window (points); motif_pruning_pct; furrow_window_mm; furrow_min_depth_pct; groups: the
-    parameter groups to compute; mpd_axis; workers (scipy.fft threads); crop_y_mm (mm or None): work on the
+    parameter groups to compute; mpd_axis, mpd_segment_mm, mpd_spike_alpha, mpd_detect_plates,
+    mpd_plate_threshold_mm, mpd_max_dropout_pct: the MPD procedure (:class:`skidsim.texture.mpd.MPDOptions`,
+    checked there; :meth:`mpd_kwargs`); workers (scipy.fft threads); crop_y_mm (mm or None): work on the
     centred band of this many mm of each scan's rows (y) from the despeckle step on, so every texture
     parameter, the MPD and the FE pavement come from that band (the quick configuration: about half the area;
     None: the whole scan).
     """
 
-    despeckle_method: str = "mad"
+    despeckle_method: str = "local"
     despeckle_k: float | None = None
     despeckle_axis: int = 1
     fill: str = "linear"
@@ -82,6 +84,11 @@ class TextureOptions:
     furrow_min_depth_pct: float = 5.0
     groups: tuple[str, ...] = tuple(GROUPS)
     mpd_axis: int = 1
+    mpd_segment_mm: float = 100.0
+    mpd_spike_alpha: float = 3.0
+    mpd_detect_plates: bool = False
+    mpd_plate_threshold_mm: float = 30.0
+    mpd_max_dropout_pct: float = 10.0
     workers: int = 1
     crop_y_mm: float | None = None
 
@@ -114,6 +121,20 @@ class TextureOptions:
             bad("crop_y_mm", "null or a positive number of mm")
         if int(self.butterworth_order) < 1 or int(self.workers) < 1 or int(self.spc_half_window) < 1:
             bad("butterworth_order", "butterworth_order, workers, spc_half_window >= 1")
+        self.mpd_kwargs()  # the MPD options raise ConfigError naming the bad one
+
+    def mpd_kwargs(self) -> dict:
+        """Keyword arguments of :func:`skidsim.texture.mean_profile_depth` from the ``mpd_*`` fields (checked)."""
+        from .mpd import MPDOptions
+
+        kw = dict(segment_mm=float(self.mpd_segment_mm), spike_alpha=float(self.mpd_spike_alpha),
+                  detect_plates=bool(self.mpd_detect_plates), plate_threshold_mm=float(self.mpd_plate_threshold_mm),
+                  max_dropout_pct=float(self.mpd_max_dropout_pct))
+        try:
+            MPDOptions(**kw)
+        except ConfigError as exc:
+            raise ConfigError(f"texture.mpd_{str(exc).removeprefix('MPD option ')}") from None
+        return {"axis": self.mpd_axis, **kw}
 
     @classmethod
     def from_dict(cls, d: dict | None) -> "TextureOptions":

@@ -108,7 +108,7 @@ def characterise(surface: Surface, options: TextureOptions | dict | None = None,
     site = surface.name if site is None else site
     des, n_rep = despeckle(surface, opt.despeckle_method, opt.despeckle_k, opt.despeckle_axis)
     des = des.with_heights(des.heights, meta={**des.meta, "n_despeckled": n_rep})
-    mpd = mean_profile_depth(des, axis=opt.mpd_axis)
+    mpd = mean_profile_depth(des, **opt.mpd_kwargs())
     bands = separate_bands(des, macro=opt.macro_mm, order=opt.butterworth_order, form=opt.form, fill=opt.fill,
                            workers=opt.workers)
     params = band_parameters(bands, opt)
