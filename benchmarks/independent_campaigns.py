@@ -1,0 +1,257 @@
+"""Issue 25's table on campaigns of each generator: generate, run the workflow, read its results.
+
+    .venv/bin/python benchmarks/independent_campaigns.py WORKDIR [--generators chips spectral default]
+        [--sites 36] [--shape 2048 2448] [--spacing-mm MM] [--config config/quick.yaml [MORE.yaml]] [--cores 2]
+
+For each generator: ``skidsim synth WORKDIR/<gen>/campaign --generator <gen>`` (skipped when the campaign is
+there), then ``snakemake --cores N --configfile config/config.yaml CONFIG... --config campaign=...`` in
+``WORKDIR/<gen>/run`` (``--directory``; the checkout is not written to) for the calibration and regression
+outputs only (no figure 11, mesh study or diagnosis). Then, per generator, from the run's results:
+
+* back-calculation fit R^2 at the calibration / validation speeds (``results/calibration/fit_statistics.csv``,
+  method ``ours``);
+* sites not calibrated (``converged`` false) and sites with mu_s at the study's upper bound 0.85
+  (``results/calibration/parameters.parquet``);
+* the best model's section-grouped CV R^2 of the DFT pooled over the prediction speeds and the number of models
+  with R^2 > 0 (``results/regression/cv_table.csv``, quantity ``dft``, speed NaN);
+* the baseline: OLS of the DFT on at most two texture parameters (``results/texture/campaign.parquet``, columns
+  ``raw_*``, ``macro_*``, ``micro_*``, ``profile_*``), the subset chosen by an inner leave-one-section-out CV among
+  all singletons and pairs, scored by leave-one-section-out CV of the measured DFT
+  (``results/ingest/dft_points.parquet``) pooled over 20-70 km/h: ``R^2 = 1 - SSE / SS about the pooled mean``,
+  as the workflow's CV table; and the fixed pair ``raw_Sq`` + ``micro_Vvc`` of the issue.
+
+Prints one markdown table (a column per generator) and writes ``WORKDIR/table.csv`` and ``WORKDIR/table.json``.
+The OLS is written here (NumPy closed forms over all pairs at once), independent of ``skidsim.regression``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+BANDS = ("raw_", "macro_", "micro_", "profile_")
+SPEEDS_KMH = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
+MU_S_BOUND = 0.85
+TARGETS = ["results/calibration/fit_statistics.csv", "results/calibration/parameters.parquet",
+           "results/regression/cv_table.csv", "results/texture/campaign.parquet",
+           "results/ingest/dft_points.parquet"]
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Baseline: OLS on at most two texture parameters, subset chosen by inner leave-one-section-out CV
+
+
+def _pair_sse(Xtr: np.ndarray, Ytr: np.ndarray, Xte: np.ndarray, Yte: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Test SSE (pooled over the columns of Y) of OLS with intercept on each feature subset.
+
+    ``pairs`` (m, 2) holds feature indices; a row (i, i) is the singleton i. Collinear pairs get +inf."""
+    mx, my = Xtr.mean(axis=0), Ytr.mean(axis=0)
+    A, B = Xtr - mx, Ytr - my
+    S = A.T @ A                       # (p, p)
+    C = A.T @ B                       # (p, k)
+    i, j = pairs[:, 0], pairs[:, 1]
+    single = i == j
+    sii, sjj, sij = S[i, i], S[j, j], S[i, j]
+    det = sii * sjj - sij ** 2
+    ok = np.where(single, sii > 1e-12 * np.maximum(np.diag(S).max(), 1e-300),
+                  det > 1e-10 * np.maximum(sii * sjj, 1e-300))
+    det_safe = np.where(ok & ~single, det, 1.0)
+    bi = np.where(single[:, None], C[i] / np.where(sii > 0, sii, 1.0)[:, None],
+                  (sjj[:, None] * C[i] - sij[:, None] * C[j]) / det_safe[:, None])
+    bj = np.where(single[:, None], 0.0, (sii[:, None] * C[j] - sij[:, None] * C[i]) / det_safe[:, None])
+    At = Xte - mx                     # (n_te, p)
+    pred = my[None, None, :] + At[:, i][:, :, None] * bi[None] + At[:, j][:, :, None] * bj[None]  # (n_te, m, k)
+    sse = ((pred - Yte[:, None, :]) ** 2).sum(axis=(0, 2))
+    return np.where(ok, sse, np.inf)
+
+
+def baseline_cv(X: pd.DataFrame, Y: np.ndarray, groups: np.ndarray, fixed: tuple[str, str] | None = None) -> dict:
+    """Leave-one-section-out CV of the OLS baseline. Returns r2, rmse (pooled over sites and speeds), the subset
+    chosen in each outer fold, and (``fixed``) the same scores of one fixed pair."""
+    names = list(X.columns)
+    Xv = X.to_numpy(float)
+    p = Xv.shape[1]
+    iu = np.triu_indices(p)
+    pairs = np.column_stack(iu)
+    secs = np.unique(groups)
+    pred = np.full_like(Y, np.nan)
+    chosen = []
+    for s in secs:
+        tr, te = groups != s, groups == s
+        inner = np.zeros(len(pairs))
+        for s2 in np.unique(groups[tr]):
+            itr, ite = tr & (groups != s2), groups == s2
+            inner += _pair_sse(Xv[itr], Y[itr], Xv[ite], Y[ite], pairs)
+        best = pairs[int(np.argmin(inner))]
+        cols = sorted({int(best[0]), int(best[1])})
+        chosen.append("+".join(names[c] for c in cols))
+        pred[te] = _ols_predict(Xv[tr][:, cols], Y[tr], Xv[te][:, cols])
+    out = {**_scores(pred, Y), "chosen": chosen}
+    if fixed and all(f in names for f in fixed):
+        cols = [names.index(f) for f in fixed]
+        fp = np.full_like(Y, np.nan)
+        for s in secs:
+            tr, te = groups != s, groups == s
+            fp[te] = _ols_predict(Xv[tr][:, cols], Y[tr], Xv[te][:, cols])
+        out["fixed"] = {"features": list(fixed), **_scores(fp, Y)}
+    return out
+
+
+def _ols_predict(Xtr: np.ndarray, Ytr: np.ndarray, Xte: np.ndarray) -> np.ndarray:
+    A = np.column_stack([np.ones(len(Xtr)), Xtr])
+    beta, *_ = np.linalg.lstsq(A, Ytr, rcond=None)
+    return np.column_stack([np.ones(len(Xte)), Xte]) @ beta
+
+
+def _scores(pred: np.ndarray, Y: np.ndarray) -> dict:
+    err = pred - Y
+    sse = float((err ** 2).sum())
+    sst = float(((Y - Y.mean()) ** 2).sum())
+    return {"r2": 1.0 - sse / sst, "rmse": float(np.sqrt(np.mean(err ** 2)))}
+
+
+def baseline_from_results(results: Path) -> dict:
+    """The baseline on a run's results directory (texture table + measured DFT at 20-70 km/h)."""
+    wide = pd.read_parquet(results / "texture" / "campaign.parquet")
+    dft = pd.read_parquet(results / "ingest" / "dft_points.parquet")
+    dft = dft[dft["speed_kmh"].isin(SPEEDS_KMH)]
+    Ymat = dft.pivot_table(index="site", columns="speed_kmh", values="mu").reindex(columns=list(SPEEDS_KMH))
+    wide = wide.set_index(wide["site"].astype(str))
+    feats = [c for c in wide.columns if isinstance(c, str) and c.startswith(BANDS)]
+    X = wide[feats].apply(pd.to_numeric, errors="coerce")
+    X = X.loc[:, X.notna().all() & (X.std() > 0)]
+    sites = [s for s in X.index if s in Ymat.index and Ymat.loc[s].notna().all()]
+    res = baseline_cv(X.loc[sites], Ymat.loc[sites].to_numpy(float), wide.loc[sites, "section"].astype(str).to_numpy(),
+                      fixed=("raw_Sq", "micro_Vvc"))
+    res["n_features"] = int(X.shape[1])
+    res["n_sites"] = len(sites)
+    return res
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Workflow figures
+
+
+def workflow_figures(results: Path, method: str = "ours") -> dict:
+    stats = pd.read_csv(results / "calibration" / "fit_statistics.csv")
+    st = stats[stats["method"] == method].set_index("kind")
+    params = pd.read_parquet(results / "calibration" / "parameters.parquet")
+    pm = params[params["method"] == method]
+    cv = pd.read_csv(results / "regression" / "cv_table.csv")
+    d = cv[(cv["quantity"] == "dft") & cv["speed_kmh"].isna()].sort_values("r2", ascending=False)
+    return {"fit_r2_cal": float(st.loc["calibration", "r2"]), "fit_r2_val": float(st.loc["validation", "r2"]),
+            "fit_rmse_cal": float(st.loc["calibration", "rmse"]), "fit_rmse_val": float(st.loc["validation", "rmse"]),
+            "n_sites": int(len(pm)), "not_converged": int((~pm["converged"].astype(bool)).sum()),
+            "at_mu_s_bound": int((pm["mu_s"] >= MU_S_BOUND - 1e-9).sum()),
+            "best_model": str(d["model"].iloc[0]), "best_r2": float(d["r2"].iloc[0]),
+            "best_rmse": float(d["rmse"].iloc[0]), "models_r2_above_0": int((d["r2"] > 0).sum()),
+            "n_models": int(len(d))}
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Running
+
+
+def run(cmd: list[str], log: Path, env: dict | None = None) -> None:
+    t0 = time.time()
+    with open(log, "w") as fh:
+        r = subprocess.run(cmd, stdout=fh, stderr=subprocess.STDOUT, env=env)
+    if r.returncode != 0:
+        tail = log.read_text()[-3000:]
+        raise SystemExit(f"failed ({r.returncode}) after {time.time() - t0:.0f} s: {' '.join(cmd)}\n{tail}")
+
+
+def generate(gen: str, campaign: Path, a) -> None:
+    if (campaign / "sites.csv").exists():
+        return
+    cmd = [str(ROOT / ".venv" / "bin" / "skidsim"), "synth", str(campaign), "--sites", str(a.sites),
+           "--seed", str(a.seed), "--shape", *map(str, a.shape)]
+    if gen != "default":
+        cmd += ["--generator", gen]
+    if a.spacing_mm:
+        cmd += ["--spacing-mm", str(a.spacing_mm)]
+    run(cmd, campaign.parent / "synth.log")
+
+
+def workflow(campaign: Path, rundir: Path, a) -> float:
+    rundir.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "--directory", str(rundir),
+           "--configfile", str(ROOT / "config" / "config.yaml"), *(str(Path(c).resolve()) for c in a.config),
+           "--config", f"campaign={campaign}", "--cores", str(a.cores), "--rerun-triggers", "mtime", "params",
+           "input", "--", *TARGETS]
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    t0 = time.time()
+    run(cmd, rundir / "snakemake.log", env)
+    return time.time() - t0
+
+
+def table(rows: dict[str, dict]) -> str:
+    gens = list(rows)
+    lines = ["| measure | " + " | ".join(gens) + " |", "|---|" + "---|" * len(gens)]
+
+    def line(label, fmt):
+        lines.append(f"| {label} | " + " | ".join(fmt(rows[g]) for g in gens) + " |")
+
+    line("back-calculation fit R^2, calibration / validation speeds",
+         lambda r: f"{r['fit_r2_cal']:.3f} / {r['fit_r2_val']:.3f}")
+    line("sites not converged; at mu_s = 0.85 (of n)",
+         lambda r: f"{r['not_converged']}; {r['at_mu_s_bound']} (of {r['n_sites']})")
+    line("DFT at unseen sections, best model (section-grouped CV R^2)",
+         lambda r: f"{r['best_model']} {r['best_r2']:.2f}")
+    line("models with CV R^2 of DFT above 0", lambda r: f"{r['models_r2_above_0']} of {r['n_models']}")
+    line("baseline: OLS on <= 2 texture parameters (inner CV), CV R^2 / RMSE",
+         lambda r: f"{r['baseline']['r2']:.2f} / {r['baseline']['rmse']:.3f}")
+    line("OLS on raw_Sq + micro_Vvc, CV R^2",
+         lambda r: f"{r['baseline']['fixed']['r2']:.2f}" if "fixed" in r["baseline"] else "n/a")
+    line("workflow wall time (s)", lambda r: f"{r['wall_s']:.0f}")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("workdir")
+    p.add_argument("--generators", nargs="+", default=["chips", "spectral", "default"],
+                   choices=["chips", "spectral", "default"])
+    p.add_argument("--sites", type=int, default=36)
+    p.add_argument("--shape", type=int, nargs=2, default=[2048, 2448], metavar=("ROWS", "COLS"))
+    p.add_argument("--spacing-mm", type=float, help="scan spacing (default: each generator's own)")
+    p.add_argument("--seed", type=int, default=20261125)
+    p.add_argument("--config", nargs="+", default=[str(ROOT / "config" / "quick.yaml")],
+                   help="config file(s) given after config/config.yaml (later ones override)")
+    p.add_argument("--cores", type=int, default=2)
+    p.add_argument("--tables-only", action="store_true", help="only read existing results")
+    a = p.parse_args(argv)
+    work = Path(a.workdir).resolve()
+    rows = {}
+    for gen in a.generators:
+        base = work / gen
+        base.mkdir(parents=True, exist_ok=True)
+        campaign = base / "campaign"
+        wall = float("nan")
+        if not a.tables_only:
+            generate(gen, campaign, a)
+            wall = workflow(campaign, base / "run", a)
+        results = base / "run" / "results"
+        rows[gen] = {**workflow_figures(results), "baseline": baseline_from_results(results), "wall_s": wall}
+        print(f"{gen}: done", file=sys.stderr, flush=True)
+    text = table(rows)
+    print(text)
+    (work / "table.json").write_text(json.dumps(rows, indent=1) + "\n")
+    flat = {g: {k: v for k, v in r.items() if k != "baseline"} | {"baseline_r2": r["baseline"]["r2"],
+                                                                   "baseline_rmse": r["baseline"]["rmse"]}
+            for g, r in rows.items()}
+    pd.DataFrame(flat).to_csv(work / "table.csv")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,18 @@
+"""Campaign generators independent of :mod:`skidsim.synthetic` (issue 25, item 1).
+
+Two generators, each a texture model with a friction-speed model of the literature whose parameters are driven by
+texture measured on the generated surface (docs/synthetic-campaign.md, "Independent generators"):
+
+* ``chips``: polygonal aggregate chips with flat facets in a flat binder, Weierstrass-Mandelbrot microtexture on
+  the chip tops (:mod:`.chips`); friction: the PIARC/IFI exponential speed model, Sp from MPD.
+* ``spectral``: a negatively skewed random field from an anisotropic power spectrum, sand-grain shot-noise
+  microtexture (:mod:`.spectral`); friction: Rado's log-normal speed model.
+
+The Penn State model is available to either (``overrides={"friction": {"model": "penn_state"}}``).
+"""
+
+from .campaign import (GENERATORS, SiteData, design_campaign, generate_site, generator_config, texture_measures,
+                       write_campaign, write_site)
+
+__all__ = ["GENERATORS", "SiteData", "design_campaign", "generate_site", "generator_config", "texture_measures",
+           "write_campaign", "write_site"]

@@ -1,0 +1,93 @@
+"""Friction-speed models that users fit to DFT traces, and the published relations that drive them from texture.
+
+Units: speed ``v`` in km/h (the DFT's slip speed), MPD and micro Sq in mm, Sp and v_peak in km/h, PNG in % per
+km/h; friction coefficients are dimensionless.
+
+* PIARC / IFI exponential speed model (PIARC 1995; ASTM E1960-07): ``mu(v) = mu20 exp((20 - v) / Sp)``, the
+  IFI's ``F(S) = F60 exp((60 - S) / Sp)`` anchored at 20 km/h, with the speed constant ``Sp = 14.2 + 89.7 MPD``.
+* Rado's model (Rado 1994, PhD thesis, Penn State): ``mu(v) = mu_peak exp(-(ln(v / v_peak) / C)^2)``, log-normal
+  in speed; on a DFT trace (v > v_peak) it falls. ``C`` widens with macrotexture; here it is set so that the
+  log-slope at 40 km/h equals the IFI's ``-1 / Sp`` (:func:`rado_shape_from_sp`).
+* Penn State model (Leu & Henry 1978; Henry 2000, NCHRP Synthesis 291): ``mu(v) = mu0 exp(-(PNG / 100) v)``;
+  the percent normalised gradient PNG falls with macrotexture (Leu & Henry 1978). Form used here:
+  ``PNG = 0.94 MPD^-0.84`` (coefficients ours: the power law through the IFI gradient ``100 / Sp`` at MPD 0.5
+  and 1.5 mm).
+* Low-speed level from microtexture: wet friction needs microtexture to break the water film and grows with it
+  towards a plateau (Kummer 1966; Forster 1989). Form used here: ``mu20 = 0.30 + 0.55 (1 - exp(-Sq_micro /
+  sq_ref_mm))``, coefficients ours, chosen so that DFT20 spans the typical wet-asphalt range 0.35-0.85.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ConfigError
+
+MODELS = ("piarc", "rado", "penn_state")
+
+
+def ifi_speed_constant_kmh(mpd_mm: float) -> float:
+    """IFI speed constant Sp (km/h) from MPD (mm): ``14.2 + 89.7 MPD`` (ASTM E1960)."""
+    return 14.2 + 89.7 * float(mpd_mm)
+
+
+def penn_state_png(mpd_mm: float) -> float:
+    """Percent normalised gradient (% per km/h) from MPD (mm): ``0.94 MPD^-0.84`` (see the module docstring)."""
+    return 0.94 * float(mpd_mm) ** -0.84
+
+
+def level_from_micro(micro_sq_mm: float, sq_ref_mm: float) -> float:
+    """Friction level at 20 km/h from the micro Sq (mm): ``0.30 + 0.55 (1 - exp(-Sq / sq_ref_mm))``."""
+    return 0.30 + 0.55 * (1.0 - np.exp(-float(micro_sq_mm) / sq_ref_mm))
+
+
+def rado_shape_from_sp(sp_kmh: float, v_peak_kmh: float, v_match_kmh: float = 40.0) -> float:
+    """Rado's shape factor C such that ``d ln mu / dv = -1 / Sp`` at ``v_match_kmh``:
+    ``-2 ln(v / v_peak) / (C^2 v) = -1 / Sp``, so ``C = sqrt(2 Sp ln(v / v_peak) / v)``."""
+    if not 0 < v_peak_kmh < v_match_kmh:
+        raise ConfigError(f"rado: expected 0 < v_peak_kmh < {v_match_kmh}, got {v_peak_kmh}")
+    return float(np.sqrt(2.0 * sp_kmh * np.log(v_match_kmh / v_peak_kmh) / v_match_kmh))
+
+
+def mu_piarc(v_kmh, mu20: float, sp_kmh: float) -> np.ndarray:
+    """PIARC/IFI model: ``mu20 exp((20 - v) / Sp)``."""
+    return mu20 * np.exp((20.0 - np.asarray(v_kmh, float)) / sp_kmh)
+
+
+def mu_rado(v_kmh, mu_peak: float, v_peak_kmh: float, c: float) -> np.ndarray:
+    """Rado's model: ``mu_peak exp(-(ln(v / v_peak) / C)^2)``."""
+    return mu_peak * np.exp(-(np.log(np.asarray(v_kmh, float) / v_peak_kmh) / c) ** 2)
+
+
+def mu_penn_state(v_kmh, mu0: float, png_pct_per_kmh: float) -> np.ndarray:
+    """Penn State model: ``mu0 exp(-(PNG / 100) v)``."""
+    return mu0 * np.exp(-png_pct_per_kmh / 100.0 * np.asarray(v_kmh, float))
+
+
+def model_parameters(model: str, mu20: float, mpd_mm: float, *, sp_factor: float = 1.0,
+                     v_peak_kmh: float = 2.0) -> dict:
+    """Parameters of ``model`` whose curve passes through ``mu20`` at 20 km/h, with the speed dependence from
+    MPD (mm) through the published relation, scaled by ``sp_factor`` (a section/site random effect on the
+    speed constant; 1 = the relation itself)."""
+    sp = ifi_speed_constant_kmh(mpd_mm) * sp_factor
+    if model == "piarc":
+        return {"mu20": float(mu20), "sp_kmh": float(sp)}
+    if model == "rado":
+        c = rado_shape_from_sp(sp, v_peak_kmh)
+        peak = mu20 / float(np.exp(-(np.log(20.0 / v_peak_kmh) / c) ** 2))
+        return {"mu_peak": float(peak), "v_peak_kmh": float(v_peak_kmh), "c": c, "sp_kmh": float(sp)}
+    if model == "penn_state":
+        png = penn_state_png(mpd_mm) / sp_factor
+        return {"mu0": float(mu20 * np.exp(png / 100.0 * 20.0)), "png_pct_per_kmh": float(png)}
+    raise ConfigError(f"friction model: expected one of {', '.join(MODELS)}, got {model!r}")
+
+
+def evaluate(model: str, params: dict, v_kmh) -> np.ndarray:
+    """mu at ``v_kmh`` of ``model`` with ``params`` (as :func:`model_parameters` returns them)."""
+    if model == "piarc":
+        return mu_piarc(v_kmh, params["mu20"], params["sp_kmh"])
+    if model == "rado":
+        return mu_rado(v_kmh, params["mu_peak"], params["v_peak_kmh"], params["c"])
+    if model == "penn_state":
+        return mu_penn_state(v_kmh, params["mu0"], params["png_pct_per_kmh"])
+    raise ConfigError(f"friction model: expected one of {', '.join(MODELS)}, got {model!r}")
