@@ -16,12 +16,15 @@ outputs only (no figure 11, mesh study or diagnosis). Then, per generator, from 
   with R^2 > 0 (``results/regression/cv_table.csv``, quantity ``dft``, speed NaN);
 * the baseline: OLS of the DFT on at most two texture parameters (``results/texture/campaign.parquet``, columns
   ``raw_*``, ``macro_*``, ``micro_*``, ``profile_*``), the subset chosen by an inner leave-one-section-out CV among
-  all singletons and pairs, scored by leave-one-section-out CV of the measured DFT
+  the empty subset, all singletons and all pairs, scored by leave-one-section-out CV of the measured DFT
   (``results/ingest/dft_points.parquet``) pooled over 20-70 km/h: ``R^2 = 1 - SSE / SS about the pooled mean``,
   as the workflow's CV table; and the fixed pair ``raw_Sq`` + ``micro_Vvc`` of the issue.
 
 Prints one markdown table (a column per generator) and writes ``WORKDIR/table.csv`` and ``WORKDIR/table.json``.
-The OLS is written here (NumPy closed forms over all pairs at once), independent of ``skidsim.regression``.
+The baseline is the library's ``ols2@dft`` (``skidsim.regression.fit_subset_ols``; the empty subset is a candidate
+too), recomputed here from the run's tables so that runs made before it joined the workflow are scored the same
+way; when the run has ``results/regression/prediction_skill.csv`` the table also reports whether the workflow's
+chosen model beats the mean and the baseline.
 """
 
 from __future__ import annotations
@@ -42,74 +45,39 @@ BANDS = ("raw_", "macro_", "micro_", "profile_")
 SPEEDS_KMH = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
 MU_S_BOUND = 0.85
 TARGETS = ["results/calibration/fit_statistics.csv", "results/calibration/parameters.parquet",
-           "results/regression/cv_table.csv", "results/texture/campaign.parquet",
-           "results/ingest/dft_points.parquet"]
+           "results/regression/cv_table.csv", "results/regression/prediction_skill.csv",
+           "results/texture/campaign.parquet", "results/ingest/dft_points.parquet"]
 
 
 # --------------------------------------------------------------------------------------------------------------
-# Baseline: OLS on at most two texture parameters, subset chosen by inner leave-one-section-out CV
-
-
-def _pair_sse(Xtr: np.ndarray, Ytr: np.ndarray, Xte: np.ndarray, Yte: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-    """Test SSE (pooled over the columns of Y) of OLS with intercept on each feature subset.
-
-    ``pairs`` (m, 2) holds feature indices; a row (i, i) is the singleton i. Collinear pairs get +inf."""
-    mx, my = Xtr.mean(axis=0), Ytr.mean(axis=0)
-    A, B = Xtr - mx, Ytr - my
-    S = A.T @ A                       # (p, p)
-    C = A.T @ B                       # (p, k)
-    i, j = pairs[:, 0], pairs[:, 1]
-    single = i == j
-    sii, sjj, sij = S[i, i], S[j, j], S[i, j]
-    det = sii * sjj - sij ** 2
-    ok = np.where(single, sii > 1e-12 * np.maximum(np.diag(S).max(), 1e-300),
-                  det > 1e-10 * np.maximum(sii * sjj, 1e-300))
-    det_safe = np.where(ok & ~single, det, 1.0)
-    bi = np.where(single[:, None], C[i] / np.where(sii > 0, sii, 1.0)[:, None],
-                  (sjj[:, None] * C[i] - sij[:, None] * C[j]) / det_safe[:, None])
-    bj = np.where(single[:, None], 0.0, (sii[:, None] * C[j] - sij[:, None] * C[i]) / det_safe[:, None])
-    At = Xte - mx                     # (n_te, p)
-    pred = my[None, None, :] + At[:, i][:, :, None] * bi[None] + At[:, j][:, :, None] * bj[None]  # (n_te, m, k)
-    sse = ((pred - Yte[:, None, :]) ** 2).sum(axis=(0, 2))
-    return np.where(ok, sse, np.inf)
+# Baseline: the library's ols2@dft (OLS of the DFT curve on at most two texture parameters, inner-CV choice)
 
 
 def baseline_cv(X: pd.DataFrame, Y: np.ndarray, groups: np.ndarray, fixed: tuple[str, str] | None = None) -> dict:
-    """Leave-one-section-out CV of the OLS baseline. Returns r2, rmse (pooled over sites and speeds), the subset
-    chosen in each outer fold, and (``fixed``) the same scores of one fixed pair."""
-    names = list(X.columns)
-    Xv = X.to_numpy(float)
-    p = Xv.shape[1]
-    iu = np.triu_indices(p)
-    pairs = np.column_stack(iu)
-    secs = np.unique(groups)
-    pred = np.full_like(Y, np.nan)
-    chosen = []
-    for s in secs:
-        tr, te = groups != s, groups == s
-        inner = np.zeros(len(pairs))
-        for s2 in np.unique(groups[tr]):
-            itr, ite = tr & (groups != s2), groups == s2
-            inner += _pair_sse(Xv[itr], Y[itr], Xv[ite], Y[ite], pairs)
-        best = pairs[int(np.argmin(inner))]
-        cols = sorted({int(best[0]), int(best[1])})
-        chosen.append("+".join(names[c] for c in cols))
-        pred[te] = _ols_predict(Xv[tr][:, cols], Y[tr], Xv[te][:, cols])
+    """Leave-one-section-out CV of the baseline :data:`skidsim.regression.BASELINE_MODEL` (one implementation:
+    :func:`skidsim.regression.fit_subset_ols` in every outer fold). ``Y`` ``(n, len(SPEEDS_KMH))`` the DFT.
+    Returns r2, rmse (pooled over sites and speeds), the subset chosen in each outer fold, and (``fixed``) the
+    same scores of plain OLS on one fixed pair."""
+    from skidsim import regression
+
+    D = pd.DataFrame(Y, index=X.index, columns=[regression.dft_column(v) for v in SPEEDS_KMH])
+    laws = pd.DataFrame({"mu_s": 0.5, "mu_k": 0.2, "alpha": 0.05}, index=X.index)  # unused by @dft models
+    cvp = regression.cross_validated_predictions(X, laws, pd.Series(groups, index=X.index),
+                                                 [regression.BASELINE_MODEL], dft=D)
+    cvp = cvp.set_index("site").loc[X.index]
+    pred = cvp[list(D.columns)].to_numpy(float)
+    chosen = cvp.drop_duplicates("section")["features"].tolist()
     out = {**_scores(pred, Y), "chosen": chosen}
-    if fixed and all(f in names for f in fixed):
-        cols = [names.index(f) for f in fixed]
+    if fixed and all(f in X.columns for f in fixed):
+        Xv = X.loc[:, list(fixed)].to_numpy(float)
         fp = np.full_like(Y, np.nan)
-        for s in secs:
+        for s in np.unique(groups):
             tr, te = groups != s, groups == s
-            fp[te] = _ols_predict(Xv[tr][:, cols], Y[tr], Xv[te][:, cols])
+            A = np.column_stack([np.ones(tr.sum()), Xv[tr]])
+            beta, *_ = np.linalg.lstsq(A, Y[tr], rcond=None)
+            fp[te] = np.column_stack([np.ones(te.sum()), Xv[te]]) @ beta
         out["fixed"] = {"features": list(fixed), **_scores(fp, Y)}
     return out
-
-
-def _ols_predict(Xtr: np.ndarray, Ytr: np.ndarray, Xte: np.ndarray) -> np.ndarray:
-    A = np.column_stack([np.ones(len(Xtr)), Xtr])
-    beta, *_ = np.linalg.lstsq(A, Ytr, rcond=None)
-    return np.column_stack([np.ones(len(Xte)), Xte]) @ beta
 
 
 def _scores(pred: np.ndarray, Y: np.ndarray) -> dict:
@@ -154,7 +122,21 @@ def workflow_figures(results: Path, method: str = "ours") -> dict:
             "at_mu_s_bound": int((pm["mu_s"] >= MU_S_BOUND - 1e-9).sum()),
             "best_model": str(d["model"].iloc[0]), "best_r2": float(d["r2"].iloc[0]),
             "best_rmse": float(d["rmse"].iloc[0]), "models_r2_above_0": int((d["r2"] > 0).sum()),
-            "n_models": int(len(d))}
+            "n_models": int(len(d)), **skill_figures(results)}
+
+
+def skill_figures(results: Path) -> dict:
+    """From the workflow's prediction-skill table (absent in runs made before it existed): the chosen model, its
+    R^2, the mean's and the baseline's, and whether the chosen model beats both."""
+    path = results / "regression" / "prediction_skill.csv"
+    if not path.exists():
+        return {}
+    sk = pd.read_csv(path, keep_default_na=False)
+    role = sk["role"].astype(str)
+    row = lambda r: sk[role.str.contains(r)].iloc[0]
+    c, m, b = row("chosen"), row("mean"), row("baseline")
+    return {"skill_chosen": str(c["model"]), "skill_chosen_r2": float(c["r2"]), "skill_mean_r2": float(m["r2"]),
+            "skill_baseline_r2": float(b["r2"]), "skill_beats_both": str(c["beats_both"]) == "True"}
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -212,6 +194,10 @@ def table(rows: dict[str, dict]) -> str:
          lambda r: f"{r['baseline']['r2']:.2f} / {r['baseline']['rmse']:.3f}")
     line("OLS on raw_Sq + micro_Vvc, CV R^2",
          lambda r: f"{r['baseline']['fixed']['r2']:.2f}" if "fixed" in r["baseline"] else "n/a")
+    line("workflow's prediction-skill table: chosen (R^2) / mean / baseline; beats both",
+         lambda r: (f"{r['skill_chosen']} ({r['skill_chosen_r2']:.2f}) / {r['skill_mean_r2']:.2f} / "
+                    f"{r['skill_baseline_r2']:.2f}; {'yes' if r['skill_beats_both'] else 'NO'}")
+         if "skill_chosen" in r else "n/a")
     line("workflow wall time (s)", lambda r: f"{r['wall_s']:.0f}")
     return "\n".join(lines)
 

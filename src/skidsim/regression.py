@@ -5,7 +5,11 @@ s/m, see :mod:`skidsim.friction`) on principal components of the standardised te
 temperature, on 27 randomly chosen sites, and judged the fit on those same 27 sites. This module reproduces that
 analysis and adds what it lacked: leave-one-section-out cross-validation of PCA regression against ridge,
 partial least squares, lasso, a two-variable model (``profile_MPD``, ``micro_Sq``) and an intercept-only baseline,
-on each parameter and on the DFT curves they imply.
+on each parameter and on the DFT curves they imply; models of what the data identify (``<model>@curve``: the
+calibrated laws' values at 20/40/60 km/h; ``<model>@dft``: the measured DFT at the prediction speeds); the simple
+baseline ``ols2@dft`` (OLS of the DFT curve on at most two texture columns chosen by inner CV,
+:func:`fit_subset_ols`); and the prediction-skill table (:func:`prediction_skill`) that sets every model beside
+the intercept-only ``mean@dft`` and that baseline, with a WARNING when the chosen model does not beat both.
 
 Conventions that change numbers (also in ``docs/regression.md``):
 
@@ -45,6 +49,12 @@ Conventions that change numbers (also in ``docs/regression.md``):
   parameters (speed in km/h converted to m/s), ``g`` the FE geometric factor (default 1). Predicted parameters are
   clipped to be physical (``mu_s, mu_k, alpha >= 0``) before the law is evaluated.
 * **Relative error** ``(predicted - measured) / measured``; "within 10 %" means ``|relative error| <= 0.10``.
+* **Baseline** (``ols2``): candidates are the empty subset, every texture column (``raw_*``, ``macro_*``,
+  ``micro_*``, ``profile_*``; not temperature) and every pair; the one with the smallest inner-CV SSE pooled over
+  all targets (one subset for the whole curve) wins, exact ties to the smaller subset; NaN imputed with training
+  medians. Always the minimum, not the one-SE rule.
+* **Skill** (:func:`prediction_skill`): pooled DFT R^2 and RMSE per model; a model "beats" a reference when its
+  RMSE is lower by more than a relative 1e-9 (a model never beats itself).
 """
 
 from __future__ import annotations
@@ -74,8 +84,18 @@ CURVE_SUFFIX = "@curve"
 #: Speeds (km/h) at which the ``@curve`` models' targets are the law's friction values: the DFT's standard
 #: calibration speeds (the study's DFT20, DFT40, DFT60).
 CURVE_ANCHORS_KMH = (20.0, 40.0, 60.0)
-#: Order used to break exact ties (simpler first).
-_SIMPLICITY = ("mean", "two_variable", "pca", "pls", "ridge", "lasso")
+#: Suffix of a model fitted on the DFT itself (see :func:`predict_parameters`), e.g. ``"ridge@dft"``: the targets
+#: are each training site's DFT reference (the measured DFT when given) at the prediction speeds.
+DFT_SUFFIX = "@dft"
+#: Base model: OLS with intercept on at most :data:`SUBSET_MAX_FEATURES` texture columns chosen by inner CV.
+SUBSET_OLS = "ols2"
+SUBSET_MAX_FEATURES = 2
+#: The simple baseline of the prediction-skill table: OLS of the DFT curve on <= 2 texture columns (inner CV).
+BASELINE_MODEL = SUBSET_OLS + DFT_SUFFIX
+#: The intercept-only reference of the prediction-skill table: the training sections' mean DFT at each speed.
+MEAN_MODEL = "mean" + DFT_SUFFIX
+#: Order used to break exact ties (simpler first; suffixes ``@curve``/``@dft`` and ``:<rule>`` ignored).
+_SIMPLICITY = ("mean", SUBSET_OLS, "two_variable", "pca", "pls", "ridge", "lasso")
 TEMPERATURE_COLUMN = "temperature_c"
 MAX_NAN_FRACTION = 0.2
 RIDGE_ALPHAS = np.logspace(-2, 4, 31)
@@ -656,6 +676,8 @@ class FittedModel:
     def predict(self, X: pd.DataFrame) -> pd.Series:
         if self.name == "mean":
             v = np.full(len(X), self.estimator)
+        elif self.name == SUBSET_OLS:
+            v = self.estimator.predict(X).iloc[:, 0].to_numpy()
         elif self.name == "two_variable":
             missing = [c for c in TWO_VARIABLES if c not in X.columns]
             if missing:
@@ -674,7 +696,8 @@ def fit_model(name: str, X: pd.DataFrame, y: pd.Series, *, groups=None, seed: in
 
     ``name``: ``"mean"`` (training mean), ``"pca"`` (rule ``"cv"``), ``"pca:<rule>"`` (e.g. ``"pca:study"``,
     ``"pca:kaiser"``, ``"pca:variance:0.9"``), ``"ridge"``, ``"lasso"``, ``"pls"``, ``"two_variable"`` (OLS on
-    ``profile_MPD`` and ``micro_Sq``, NaN imputed with training medians). ``groups`` (one label per row) makes the
+    ``profile_MPD`` and ``micro_Sq``, NaN imputed with training medians), ``"ols2"`` (OLS on at most two texture
+    columns chosen by inner CV, :func:`fit_subset_ols`). ``groups`` (one label per row) makes the
     inner CV leave-one-group-out; ``selection`` ``"one_se"`` or ``"min"`` (see module docstring). Returns an
     object with ``predict(X) -> Series`` (:class:`PCARegression` or :class:`FittedModel`).
     """
@@ -690,6 +713,10 @@ def fit_model(name: str, X: pd.DataFrame, y: pd.Series, *, groups=None, seed: in
                                   selection=selection, max_nan_fraction=max_nan_fraction)
     if name == "mean":
         return FittedModel(name, target, None, float(yv.mean()), {})
+    if name == SUBSET_OLS:
+        est = fit_subset_ols(X, pd.DataFrame({target: yv}, index=X.index), groups=groups, seed=seed,
+                             inner_folds=inner_folds, max_nan_fraction=max_nan_fraction)
+        return FittedModel(name, target, None, est, {"features": est.label})
     if name == "two_variable":
         missing = [c for c in TWO_VARIABLES if c not in X.columns]
         if missing:
@@ -704,8 +731,8 @@ def fit_model(name: str, X: pd.DataFrame, y: pd.Series, *, groups=None, seed: in
         A = np.where(np.isnan(A), med, A)
         return FittedModel(name, target, None, _ols(A, yv), {"medians": med})
     if name not in ("ridge", "lasso", "pls"):
-        raise InputError(None, "a model name: mean, pca, pca:<rule>, ridge, lasso, pls, two_variable",
-                         column="models", got=name)
+        raise InputError(None, "a model name: mean, ols2, pca, pca:<rule>, ridge, lasso, pls, two_variable "
+                         "(optionally with @curve or @dft)", column="models", got=name)
     from sklearn.cross_decomposition import PLSRegression
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.linear_model import Lasso, Ridge
@@ -743,6 +770,160 @@ def fit_model(name: str, X: pd.DataFrame, y: pd.Series, *, groups=None, seed: in
     return FittedModel(name, target, st, est, hyper)
 
 
+# ---------------------------------------------------------------------------------------------------------
+# The simple baseline: OLS on at most two texture columns, the subset chosen by inner cross-validation
+# ---------------------------------------------------------------------------------------------------------
+
+def texture_columns(X: pd.DataFrame) -> list[str]:
+    """The texture columns of a feature table (``raw_*``, ``macro_*``, ``micro_*``, ``profile_*``; no temperature)."""
+    return [c for c in X.columns if isinstance(c, str) and any(c.startswith(b + "_") for b in BANDS)]
+
+
+def candidate_subsets(p: int, max_features: int = SUBSET_MAX_FEATURES) -> np.ndarray:
+    """Candidate column subsets of size 0..``max_features`` (at most 2) of ``p`` columns, as an ``(m, 2)`` index
+    array: ``(-1, -1)`` the empty subset (intercept only), ``(i, i)`` the column i alone, ``(i, j)`` with
+    ``i < j`` the pair. Ordered by size, then lexicographically (the tie order: simpler first)."""
+    if max_features not in (0, 1, 2):
+        raise InputError(None, "at most 2 features in the subset OLS", column="max_features", got=max_features)
+    rows = [np.array([[-1, -1]])]
+    if max_features >= 1 and p:
+        rows.append(np.column_stack([np.arange(p), np.arange(p)]))
+    if max_features >= 2 and p > 1:
+        rows.append(np.column_stack(np.triu_indices(p, k=1)))
+    return np.concatenate(rows).astype(int)
+
+
+def _impute(A: np.ndarray, medians: np.ndarray) -> np.ndarray:
+    return np.where(np.isnan(A), medians, A)
+
+
+def _nanmedian(A: np.ndarray) -> np.ndarray:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(A, axis=0)
+
+
+def subset_test_sse(Atr: np.ndarray, Ytr: np.ndarray, Ate: np.ndarray, Yte: np.ndarray,
+                    subsets: np.ndarray) -> np.ndarray:
+    """Test SSE, summed over the test rows and the target columns, of OLS with intercept fitted on the training
+    rows with each subset of :func:`candidate_subsets` (closed forms, all subsets at once).
+
+    ``Atr``/``Ate`` feature rows (NaN imputed with the training medians here); ``Ytr``/``Yte`` ``(n, k)`` targets
+    in one unit. A subset whose columns are constant or collinear on the training rows (``1 - r^2 <= 1e-10``)
+    gets ``+inf``, so it is never chosen.
+    """
+    med = _nanmedian(Atr)
+    med = np.where(np.isnan(med), 0.0, med)
+    Atr, Ate = _impute(Atr, med), _impute(Ate, med)
+    mx, sx = Atr.mean(axis=0), Atr.std(axis=0)
+    const = ~(sx > 1e-12 * (1.0 + np.abs(mx)))
+    sx = np.where(const, 1.0, sx)
+    A, At = (Atr - mx) / sx, (Ate - mx) / sx
+    A[:, const] = 0.0
+    At[:, const] = 0.0
+    Ytr, Yte = np.atleast_2d(Ytr.T).T, np.atleast_2d(Yte.T).T
+    my = Ytr.mean(axis=0)
+    S = A.T @ A
+    C = A.T @ (Ytr - my)
+    empty = subsets[:, 0] < 0
+    i = np.where(empty, 0, subsets[:, 0])
+    j = np.where(empty, 0, subsets[:, 1])
+    single = (i == j) & ~empty
+    sii, sjj, sij = S[i, i], S[j, j], S[i, j]
+    tol = 1e-12 * len(A)
+    det = sii * sjj - sij ** 2
+    ok = empty | np.where(single, sii > tol, (sii > tol) & (sjj > tol) & (det > 1e-10 * sii * sjj))
+    sii_s = np.where(sii > tol, sii, 1.0)
+    det_s = np.where(ok & ~single & ~empty, det, 1.0)
+    bi = np.where(single[:, None], C[i] / sii_s[:, None], (sjj[:, None] * C[i] - sij[:, None] * C[j]) / det_s[:, None])
+    bj = np.where(single[:, None], 0.0, (sii[:, None] * C[j] - sij[:, None] * C[i]) / det_s[:, None])
+    bi = np.where(empty[:, None], 0.0, bi)
+    bj = np.where(empty[:, None], 0.0, bj)
+    pred = my[None, None, :] + At[:, i][:, :, None] * bi[None] + At[:, j][:, :, None] * bj[None]  # (n_te, m, k)
+    sse = ((pred - Yte[:, None, :]) ** 2).sum(axis=(0, 2))
+    return np.where(ok, sse, np.inf)
+
+
+@dataclass(frozen=True)
+class SubsetOLS:
+    """OLS with intercept on at most two texture columns, the subset chosen by inner cross-validation.
+
+    ``columns``: the chosen texture columns (0, 1 or 2; empty = intercept only); ``targets``: the target
+    columns, fitted jointly with the same subset (one unit, e.g. DFT friction at several speeds, dimensionless);
+    ``medians``: training medians of ``columns`` (NaN imputation), in the columns' units; ``intercept`` ``(k,)``
+    in target units; ``coef`` ``(len(columns), k)`` in target units per unit of the column; ``inner_sse``: the
+    pooled inner-CV squared error (target units squared) of every candidate subset, named ``"a+b"`` (``""`` for
+    the intercept only), ``inf`` for a constant or collinear subset.
+    """
+
+    columns: tuple[str, ...]
+    targets: tuple[str, ...]
+    medians: np.ndarray
+    intercept: np.ndarray
+    coef: np.ndarray
+    inner_sse: pd.Series
+
+    @property
+    def label(self) -> str:
+        """``"a+b"`` (or ``"(intercept only)"``)."""
+        return "+".join(self.columns) if self.columns else "(intercept only)"
+
+    def predict(self, X: pd.DataFrame) -> pd.DataFrame:
+        """Predicted targets ``(n, k)`` for the rows of ``X``, indexed like ``X``."""
+        missing = [c for c in self.columns if c not in X.columns]
+        if missing:
+            raise InputError(None, "the baseline's chosen texture columns", column=missing[0])
+        A = _impute(X.loc[:, list(self.columns)].to_numpy(dtype=float), self.medians)
+        P = self.intercept[None, :] + A @ self.coef
+        return pd.DataFrame(P, index=X.index, columns=list(self.targets))
+
+
+def fit_subset_ols(X: pd.DataFrame, Y: pd.DataFrame, *, groups=None, seed: int = 0, inner_folds: int = 5,
+                   max_features: int = SUBSET_MAX_FEATURES,
+                   max_nan_fraction: float = MAX_NAN_FRACTION) -> SubsetOLS:
+    """The simple baseline: choose at most ``max_features`` texture columns of ``X`` by inner cross-validation
+    on these rows, then fit OLS with intercept of all columns of ``Y`` on them.
+
+    Candidates: the empty subset, every texture column (:func:`texture_columns`; columns with more than
+    ``max_nan_fraction`` NaN or constant on these rows are left out) and every pair. The inner CV is
+    :func:`inner_splits` (leave-one-group-out with ``groups``, else seeded K-fold); in each fold the medians
+    (NaN imputation) are learnt on the fold's training rows. The subset with the smallest test SSE pooled over
+    the folds and the columns of ``Y`` wins (one unit, so one subset for the whole curve); exact ties go to the
+    smaller subset. Only the rows given are used: in a cross-validation the held-out section never enters the
+    choice.
+    """
+    if isinstance(Y, pd.Series):
+        Y = Y.to_frame()
+    if len(X) != len(Y):
+        raise InputError(None, f"one target row per feature row ({len(X)})", got=len(Y))
+    Yv = Y.to_numpy(dtype=float)
+    if not np.all(np.isfinite(Yv)):
+        raise InputError(None, "finite target values", column=str(list(Y.columns)))
+    cols = texture_columns(X)
+    if not cols:
+        raise InputError(None, "texture columns (raw_*, macro_*, micro_*, profile_*) for the baseline",
+                         got=list(X.columns)[:8])
+    A = X.loc[:, cols].to_numpy(dtype=float)
+    keep, _, _, _, _ = _standardiser_arrays(A, max_nan_fraction)
+    names = [cols[k] for k in keep]
+    A = A[:, keep]
+    subsets = candidate_subsets(len(names), max_features)
+    splits = inner_splits(len(Yv), groups, seed=seed, n_folds=inner_folds)
+    sse = np.zeros(len(subsets))
+    for tr, te in splits:
+        sse += subset_test_sse(A[tr], Yv[tr], A[te], Yv[te], subsets)
+    best = subsets[int(np.argmin(sse))]
+    chosen = sorted({int(c) for c in best if c >= 0})
+    med = _nanmedian(A)
+    B = _impute(A[:, chosen], med[chosen])
+    design = np.column_stack([np.ones(len(B)), B])
+    beta, *_ = np.linalg.lstsq(design, Yv, rcond=None)
+    labels = ["" if a < 0 else names[a] if a == b else f"{names[a]}+{names[b]}" for a, b in subsets]
+    return SubsetOLS(columns=tuple(names[c] for c in chosen), targets=tuple(str(c) for c in Y.columns),
+                     medians=med[chosen], intercept=beta[0], coef=beta[1:],
+                     inner_sse=pd.Series(sse, index=labels, name="inner_sse"))
+
+
 def curve_targets(Y: pd.DataFrame, anchors_kmh: Sequence[float] = CURVE_ANCHORS_KMH) -> pd.DataFrame:
     """The friction law of each row of ``Y`` (``mu_s``, ``mu_k``, ``alpha`` s/m) evaluated at ``anchors_kmh``
     (km/h): columns ``mu@<v>`` (dimensionless), indexed like ``Y``. The targets of the ``<model>@curve`` models."""
@@ -765,8 +946,8 @@ def law_from_curve(values, anchors_kmh: Sequence[float] = CURVE_ANCHORS_KMH) -> 
 
 
 def predict_parameters(model_name: str, X_train: pd.DataFrame, Y_train: pd.DataFrame, X_test: pd.DataFrame, *,
-                       groups_train=None, seed: int = 0, inner_folds: int = 5,
-                       selection: str = "one_se") -> pd.DataFrame:
+                       groups_train=None, seed: int = 0, inner_folds: int = 5, selection: str = "one_se",
+                       dft_train: pd.DataFrame | None = None, g_test: pd.DataFrame | None = None) -> pd.DataFrame:
     """Fit ``model_name`` on the training sites, one model per column of ``Y_train`` (``mu_s``, ``mu_k``,
     ``alpha`` s/m), and predict the test sites. Returns a frame indexed like ``X_test``, columns of ``Y_train``.
 
@@ -776,22 +957,157 @@ def predict_parameters(model_name: str, X_train: pd.DataFrame, Y_train: pd.DataF
     not identified by a DFT curve over 20-60 km/h (a nearly straight curve is fitted as well by a high mu_k with
     a fast decay as by mu_k = 0 with a slow one), so per-parameter regressions average incompatible parameter
     sets and the law of the averaged parameters is not the average curve (docs/regression.md, "Curve targets").
+
+    ``<model>@dft`` (e.g. ``ridge@dft``, the baseline ``ols2@dft``): the targets are the DFT of the training
+    sites at the prediction speeds, ``dft_train`` (:func:`dft_targets`: the measured DFT, not the calibrated
+    laws, so neither the back-calculation nor the FE stands between texture and target); the result also has
+    the predicted ``dft@<v>`` columns, which the CV table scores directly, and parameters of the bounded law
+    whose ``g * mu(v)`` is closest to them (:func:`law_from_dft`, ``g_test`` the test sites' g, None for 1), the
+    FE input of Figure 11. Models ``ols2``/``ols2@...`` add a column ``features`` naming the chosen columns.
     """
     if len(X_train) != len(Y_train):
         raise InputError(None, f"one friction row per training site ({len(X_train)})", got=len(Y_train))
     if model_name.endswith(CURVE_SUFFIX):
         base = model_name[:-len(CURVE_SUFFIX)]
-        C = predict_parameters(base, X_train, curve_targets(Y_train), X_test, groups_train=groups_train,
-                               seed=seed, inner_folds=inner_folds, selection=selection)
+        C, features = predict_targets(base, X_train, curve_targets(Y_train), X_test, groups_train=groups_train,
+                                      seed=seed, inner_folds=inner_folds, selection=selection)
         laws = [law_from_curve(row) for row in C.to_numpy(dtype=float)]
-        return pd.DataFrame(laws, index=X_test.index, columns=list(PARAMETERS))[
+        out = pd.DataFrame(laws, index=X_test.index, columns=list(PARAMETERS))[
             [c for c in Y_train.columns if c in PARAMETERS]]
-    out = {}
+        if features is not None:
+            out["features"] = features
+        return out
+    if model_name.endswith(DFT_SUFFIX):
+        if dft_train is None:
+            raise InputError(None, f"DFT targets of the training sites for model {model_name!r}", column="dft")
+        base = model_name[:-len(DFT_SUFFIX)]
+        D = dft_train.loc[X_train.index]
+        C, features = predict_targets(base, X_train, D, X_test, groups_train=groups_train, seed=seed,
+                                      inner_folds=inner_folds, selection=selection)
+        speeds = dft_speeds(D)
+        laws = []
+        for site, row in zip(X_test.index, C.to_numpy(dtype=float)):
+            gv = None if g_test is None else _g_values(g_test, str(site), speeds)
+            laws.append(law_from_dft(row, speeds, gv))
+        out = pd.DataFrame(laws, index=X_test.index, columns=list(PARAMETERS))[
+            [c for c in Y_train.columns if c in PARAMETERS]]
+        for c in C.columns:
+            out[c] = C[c].to_numpy()
+        if features is not None:
+            out["features"] = features
+        return out
+    out, features = {}, {}
     for c in Y_train.columns:
         m = fit_model(model_name, X_train, Y_train[c], groups=groups_train, seed=seed, inner_folds=inner_folds,
                       selection=selection)
         out[c] = m.predict(X_test).to_numpy()
-    return pd.DataFrame(out, index=X_test.index)
+        if model_name == SUBSET_OLS:
+            features[c] = m.hyper["features"]
+    out = pd.DataFrame(out, index=X_test.index)
+    if features:
+        out["features"] = "; ".join(f"{c}: {f}" for c, f in features.items())
+    return out
+
+
+def predict_targets(base: str, X_train: pd.DataFrame, T_train: pd.DataFrame, X_test: pd.DataFrame, *,
+                    groups_train=None, seed: int = 0, inner_folds: int = 5,
+                    selection: str = "one_se") -> tuple[pd.DataFrame, str | None]:
+    """Predict every column of ``T_train`` (curve values in one unit) at the test rows with model ``base``.
+
+    ``"ols2"`` chooses one subset of at most two texture columns for all columns together (the pooled inner SSE,
+    :func:`fit_subset_ols`) and returns its label; any other model is fitted per column (its own hyper-parameters)
+    and the label is None. Returns (predictions indexed like ``X_test`` with the columns of ``T_train``, label).
+    """
+    if base == SUBSET_OLS:
+        m = fit_subset_ols(X_train, T_train, groups=groups_train, seed=seed, inner_folds=inner_folds)
+        return m.predict(X_test), m.label
+    out = {}
+    for c in T_train.columns:
+        m = fit_model(base, X_train, T_train[c], groups=groups_train, seed=seed, inner_folds=inner_folds,
+                      selection=selection)
+        out[c] = m.predict(X_test).to_numpy()
+    return pd.DataFrame(out, index=X_test.index), None
+
+
+def dft_column(speed_kmh: float) -> str:
+    """Name of the DFT target column at ``speed_kmh`` (km/h): ``"dft@20"``."""
+    return f"dft@{float(speed_kmh):g}"
+
+
+def dft_speeds(D: pd.DataFrame) -> list[float]:
+    """Speeds (km/h) of the ``dft@<v>`` columns of ``D``, in column order."""
+    out = []
+    for c in D.columns:
+        if not (isinstance(c, str) and c.startswith("dft@")):
+            raise InputError(None, "DFT target columns named dft@<speed km/h>", column=str(c))
+        out.append(float(c[4:]))
+    return out
+
+
+def dft_targets(Y: pd.DataFrame | None, *, measured_dft: pd.DataFrame | None = None, g: pd.DataFrame | None = None,
+                speeds_kmh: Sequence[float] = DEFAULT_SPEEDS_KMH, sites=None,
+                measured_file="measured DFT") -> pd.DataFrame:
+    """The targets of the ``<model>@dft`` models: one row per site, columns ``dft@<v>`` (friction, dimensionless)
+    at ``speeds_kmh`` (km/h). The measured DFT (long form site, speed_kmh, mu) when given, else ``g * mu(v)`` of
+    the calibrated laws ``Y`` (the same reference as :func:`score_predictions`). ``sites``: the rows wanted
+    (default: the index of ``Y``); every site needs a value at every speed, else InputError."""
+    if sites is None:
+        if Y is None:
+            raise InputError(None, "the sites of the DFT targets", column="site")
+        sites = list(Y.index.astype(str))
+    sites = [str(s) for s in sites]
+    if measured_dft is None:
+        if Y is None:
+            raise InputError(None, "a measured DFT or calibrated laws for the DFT targets", column="mu")
+        long = predict_dft(Y.loc[sites], g, speeds_kmh)
+        mc = "mu"
+    else:
+        long = measured_dft
+        for c in ("site", "speed_kmh"):
+            if c not in long.columns:
+                raise InputError(measured_file, f"a '{c}' column", column=c, got=list(long.columns))
+        mc = _value_col(long, ("measured", "mu", "sn"), measured_file)
+    t = pd.DataFrame({"site": long["site"].astype(str), "key": _speed_key(long["speed_kmh"]),
+                      "v": long[mc].astype(float)})
+    if t.duplicated(["site", "key"]).any():
+        d = t[t.duplicated(["site", "key"])].iloc[0]
+        raise InputError(measured_file, "one value per site and speed", column="speed_kmh",
+                         got=f"{d['site']} at {d['key']:g} km/h")
+    wide = t.pivot(index="site", columns="key", values="v")
+    out = {}
+    for v in speeds_kmh:
+        k = float(_speed_key(v))
+        col = wide[k] if k in wide.columns else pd.Series(dtype=float)
+        vals = col.reindex(sites)
+        if vals.isna().any():
+            raise InputError(measured_file, f"a DFT value for site {vals.index[vals.isna()][0]} at {v:g} km/h",
+                             column=mc)
+        out[dft_column(v)] = vals.to_numpy(dtype=float)
+    return pd.DataFrame(out, index=pd.Index(sites, name="site"))
+
+
+def _g_values(g: pd.DataFrame, site: str, speeds: Sequence[float]) -> np.ndarray:
+    t = g[g["site"].astype(str) == site]
+    m = dict(zip(_speed_key(t["speed_kmh"]).tolist(), t["g"].astype(float)))
+    out = []
+    for v in speeds:
+        k = float(_speed_key(v))
+        if k not in m:
+            raise InputError("g table", f"a geometric factor for site {site} at {v:g} km/h", column="g")
+        out.append(m[k])
+    return np.asarray(out, dtype=float)
+
+
+def law_from_dft(values, speeds_kmh: Sequence[float], g=None) -> tuple[float, float, float]:
+    """(mu_s, mu_k, alpha s/m) of the bounded law whose FE response ``g(v) * mu(v)`` is closest (least squares)
+    to the DFT ``values`` at ``speeds_kmh`` (km/h); ``g`` None for g = 1. The law a ``<model>@dft`` model hands
+    to the FE (Figure 11) and to the parameter rows of the CV table; its DFT score uses the predicted values
+    themselves, not this law."""
+    from skidsim.calibration import fit_exponential_decay
+
+    law, _ = fit_exponential_decay(np.asarray(speeds_kmh, dtype=float), np.asarray(values, dtype=float),
+                                   b=None if g is None else np.asarray(g, dtype=float))
+    return law.mu_s, law.mu_k, law.alpha
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -896,30 +1212,43 @@ def figure11_summary(table: pd.DataFrame) -> pd.DataFrame:
 
 def cross_validated_predictions(X: pd.DataFrame, Y: pd.DataFrame, groups, models: Sequence[str] = DEFAULT_MODELS,
                                 *, seed: int = 0, inner_folds: int = 5, selection: str = "one_se",
-                                workers: int = 1) -> pd.DataFrame:
+                                workers: int = 1, dft: pd.DataFrame | None = None,
+                                g: pd.DataFrame | None = None) -> pd.DataFrame:
     """Out-of-section predictions: for every section, each model is fitted on all other sections (hyper-
     parameters by inner leave-one-section-out CV on those) and predicts the held-out section's parameters.
 
     ``workers`` > 1 fits the (model, section) pairs in a thread pool: the fits are independent and seeded, the
     rows are assembled in the same order, so the result is identical to ``workers=1``; the time goes into
     scikit-learn's lasso coordinate descent (90 % of a default run's regression), which releases the GIL.
-    Returns long form: site, section, model, and one predicted column per column of ``Y``.
+    ``dft``: the DFT targets of the ``<model>@dft`` models (:func:`dft_targets`, one row per site; default
+    ``g * mu(v)`` of ``Y`` at :data:`DEFAULT_SPEEDS_KMH`), ``g`` the geometric factors (None: 1) for their laws.
+    Returns long form: site, section, model, and one predicted column per column of ``Y``; ``<model>@dft``
+    rows also fill the ``dft@<v>`` columns, ``ols2`` models the ``features`` column (NaN elsewhere).
     """
-    g = pd.Series(np.asarray(groups).astype(str), index=X.index) if not isinstance(groups, pd.Series) \
+    grp = pd.Series(np.asarray(groups).astype(str), index=X.index) if not isinstance(groups, pd.Series) \
         else groups.astype(str).reindex(X.index)
-    if g.isna().any() or len(g) != len(X):
+    if grp.isna().any() or len(grp) != len(X):
         raise InputError(None, "a section for every site", column="section")
     if not X.index.equals(Y.index):
         raise InputError(None, "feature and friction tables indexed by the same sites in the same order",
                          column="site")
-    uniq = sorted(g.unique())
+    uniq = sorted(grp.unique())
     if len(uniq) < 3:
         raise InputError(None, "at least 3 sections for leave-one-section-out", column="section", got=len(uniq))
+    if dft is None and any(m.endswith(DFT_SUFFIX) for m in models):
+        dft = dft_targets(Y, g=g)
+    if dft is not None:
+        missing = sorted(set(X.index.astype(str)) - set(dft.index.astype(str)))
+        if missing:
+            raise InputError(None, "DFT targets for every site", column="site", got=missing[0])
+        dft = dft.set_axis(dft.index.astype(str)).loc[X.index.astype(str)].set_axis(X.index)
+
     def one(model, sec):
-        te = (g == sec).to_numpy()
+        te = (grp == sec).to_numpy()
         tr = ~te
-        pred = predict_parameters(model, X[tr], Y[tr], X[te], groups_train=g[tr].to_numpy(), seed=seed,
-                                  inner_folds=inner_folds, selection=selection)
+        pred = predict_parameters(model, X[tr], Y[tr], X[te], groups_train=grp[tr].to_numpy(), seed=seed,
+                                  inner_folds=inner_folds, selection=selection,
+                                  dft_train=None if dft is None else dft[tr], g_test=g)
         pred.insert(0, "model", model)
         pred.insert(0, "section", sec)
         pred.insert(0, "site", pred.index.astype(str))
@@ -956,6 +1285,8 @@ def score_predictions(predictions: pd.DataFrame, Y: pd.DataFrame, *, g: pd.DataF
     (``speed_kmh`` NaN). Columns n, rmse, mae, bias, r2 (out-of-sample, ``1 - SSE / sum((ref - mean ref)^2)``),
     mean_abs_rel_error, share_within_10pct. The DFT is ``g * mu(v)`` of the predicted parameters; the reference is
     ``measured_dft`` (site, speed_kmh, mu) or, if None, ``g * mu(v)`` of the calibrated parameters ``Y``.
+    A model whose rows fill the ``dft@<v>`` columns of every speed (``<model>@dft``) is scored on those
+    predicted values directly.
     """
     out = []
     params = [c for c in Y.columns if c in predictions.columns]
@@ -964,8 +1295,17 @@ def score_predictions(predictions: pd.DataFrame, Y: pd.DataFrame, *, g: pd.DataF
         for c in params:
             out.append({"model": model, "quantity": c, "speed_kmh": float("nan"),
                         **_scores(p[c].to_numpy(float), ref[c].to_numpy(float), ref[c].to_numpy(float))})
-        if all(c in params for c in PARAMETERS):
+        direct = [dft_column(v) for v in speeds_kmh]
+        if all(c in p.columns for c in direct) and p[direct].notna().all().all():
+            # a <model>@dft model: its DFT predictions are scored as they are (not through a law)
+            pd_ = pd.DataFrame({"site": np.repeat(p["site"].astype(str).to_numpy(), len(direct)),
+                                "speed_kmh": np.tile(np.asarray(speeds_kmh, dtype=float), len(p)),
+                                "mu": p[direct].to_numpy(dtype=float).ravel()})
+        elif all(c in params for c in PARAMETERS):
             pd_ = predict_dft(p.set_index(p["site"].astype(str)), g, speeds_kmh)
+        else:
+            pd_ = None
+        if pd_ is not None:
             if measured_dft is None:
                 meas = predict_dft(ref, g, speeds_kmh)
             else:
@@ -984,9 +1324,13 @@ def cross_validate_models(X: pd.DataFrame, Y: pd.DataFrame, groups, models: Sequ
                           g: pd.DataFrame | None = None, measured_dft: pd.DataFrame | None = None,
                           speeds_kmh: Sequence[float] = DEFAULT_SPEEDS_KMH, seed: int = 0,
                           inner_folds: int = 5, selection: str = "one_se") -> pd.DataFrame:
-    """Leave-one-section-out comparison of ``models`` (see :func:`score_predictions` for the table)."""
+    """Leave-one-section-out comparison of ``models`` (see :func:`score_predictions` for the table); the
+    ``<model>@dft`` targets are the same DFT reference the table scores against (:func:`dft_targets`)."""
+    dft = None
+    if any(m.endswith(DFT_SUFFIX) for m in models):
+        dft = dft_targets(Y, measured_dft=measured_dft, g=g, speeds_kmh=speeds_kmh)
     pred = cross_validated_predictions(X, Y, groups, models, seed=seed, inner_folds=inner_folds,
-                                      selection=selection)
+                                      selection=selection, dft=dft, g=g)
     return score_predictions(pred, Y, g=g, measured_dft=measured_dft, speeds_kmh=speeds_kmh)
 
 
@@ -1014,7 +1358,7 @@ def rank_models(cv_table: pd.DataFrame, criterion: str = "auto") -> pd.DataFrame
         raise InputError(None, "criterion 'auto', 'dft_rmse' or 'param_r2'", column="criterion", got=criterion)
     order = {m: i for i, m in enumerate(_SIMPLICITY)}
     r = pd.DataFrame({"model": s.index, "score": s.to_numpy(float)})
-    r["simplicity"] = [order.get(m.split(":")[0], len(order)) for m in r["model"]]
+    r["simplicity"] = [order.get(m.split("@")[0].split(":")[0], len(order)) for m in r["model"]]
     r = r.sort_values(["score", "simplicity"], kind="stable").drop(columns="simplicity").reset_index(drop=True)
     r["gap"] = r["score"] - r["score"].iloc[0]
     r["ratio"] = r["score"] / r["score"].iloc[0] if r["score"].iloc[0] > 0 else np.nan
@@ -1025,6 +1369,89 @@ def rank_models(cv_table: pd.DataFrame, criterion: str = "auto") -> pd.DataFrame
 def best_model(cv_table: pd.DataFrame, criterion: str = "auto") -> str:
     """The winner of :func:`rank_models` (lowest score; exact ties go to the simpler model)."""
     return str(rank_models(cv_table, criterion)["model"].iloc[0])
+
+
+def prediction_skill(cv_table: pd.DataFrame, chosen: str, *, mean_model: str = MEAN_MODEL,
+                     baseline_model: str = BASELINE_MODEL, notes: Mapping[str, str] | None = None) -> pd.DataFrame:
+    """The prediction-skill table: per model, the section-grouped CV R^2 and RMSE of the DFT pooled over the
+    prediction speeds (the ``quantity == "dft"``, ``speed_kmh`` NaN rows of ``cv_table``), beside the
+    intercept-only ``mean_model`` and the simple ``baseline_model``.
+
+    Columns: rank (by RMSE), model, role (``chosen``, ``mean``, ``baseline``, joined by ``+``), n, r2, rmse
+    (friction, dimensionless), r2_minus_mean, r2_minus_baseline, beats_mean / beats_baseline (RMSE lower than
+    the reference's by more than a relative 1e-9; a model never beats itself), beats_both, warning (the text
+    below on the chosen model's row when it does not beat both, else empty), note (``notes[model]``, e.g. the
+    baseline's chosen columns). ``attrs["warning"]`` holds the same text (empty when the chosen model beats both):
+    callers must show it (the workflow logs it as a WARNING and the report flags the row).
+    """
+    pooled = cv_table[(cv_table["quantity"] == "dft") & cv_table["speed_kmh"].isna()]
+    if pooled.empty:
+        raise InputError(None, "pooled DFT rows (quantity 'dft', speed NaN) in the CV table", column="quantity")
+    t = pooled.drop_duplicates("model").set_index("model")
+    for m, what in ((chosen, "the chosen model"), (mean_model, "the mean model"),
+                    (baseline_model, "the baseline model")):
+        if m not in t.index:
+            raise InputError(None, f"{what} {m!r} in the CV table's pooled DFT rows", column="model",
+                             got=sorted(t.index)[:12])
+    ref = {"mean": t.loc[mean_model], "baseline": t.loc[baseline_model]}
+    out = pd.DataFrame({"model": t.index, "n": t["n"].astype(int).to_numpy(), "r2": t["r2"].to_numpy(float),
+                        "rmse": t["rmse"].to_numpy(float)})
+    roles = []
+    for m in out["model"]:
+        r = [name for name, mm in (("chosen", chosen), ("mean", mean_model), ("baseline", baseline_model))
+             if m == mm]
+        roles.append("+".join(r))
+    out.insert(1, "role", roles)
+    for name in ("mean", "baseline"):
+        out[f"r2_minus_{name}"] = out["r2"] - float(ref[name]["r2"])
+        out[f"beats_{name}"] = (out["rmse"] < float(ref[name]["rmse"]) * (1 - 1e-9)) & \
+            (out["model"] != (mean_model if name == "mean" else baseline_model))
+    out["beats_both"] = out["beats_mean"] & out["beats_baseline"]
+    out = out.sort_values(["rmse", "model"], kind="stable").reset_index(drop=True)
+    out.insert(0, "rank", np.arange(1, len(out) + 1))
+    c = out[out["model"] == chosen].iloc[0]
+    warning = ""
+    if not bool(c["beats_both"]):
+        lost = []
+        for name, mm in (("mean", mean_model), ("baseline", baseline_model)):
+            if not bool(c[f"beats_{name}"]):
+                rr = ref[name]
+                lost.append(f"the {'intercept-only mean' if name == 'mean' else 'simple baseline'} {mm} "
+                            f"(R^2 {float(rr['r2']):.3f}, RMSE {float(rr['rmse']):.4f})")
+        score = (f"section-grouped CV R^2 {float(c['r2']):.3f}, RMSE {float(c['rmse']):.4f} of the DFT pooled "
+                 "over the prediction speeds")
+        if chosen in (mean_model, baseline_model):
+            what = "the intercept-only mean" if chosen == mean_model else \
+                "the simple baseline (OLS on at most two texture parameters)"
+            better = int((out["rmse"] < float(c["rmse"]) * (1 - 1e-9)).sum())
+            others = [t_ for t_, mm in zip(lost, (mean_model, baseline_model)) if mm != chosen] \
+                if len(lost) == 2 else []
+            warning = (f"WARNING: the chosen model is {what} {chosen} itself ({score}): "
+                       + (f"{better} model(s) of the comparison have a lower RMSE" if better else
+                          "no other model of the comparison beats it")
+                       + ("; it does not beat " + others[0] if others else ""))
+        else:
+            warning = (f"WARNING: the chosen model {chosen} ({score}) does not beat " + " nor ".join(lost)
+                       + ": its predictions of friction at unseen sections are no better than that reference")
+    out["warning"] = np.where(out["model"] == chosen, warning, "")
+    out["note"] = [str((notes or {}).get(m, "")) for m in out["model"]]
+    out.attrs["warning"] = warning
+    return out
+
+
+def baseline_notes(cv_predictions: pd.DataFrame) -> dict[str, str]:
+    """For each model with a ``features`` column in ``cv_predictions`` (the ``ols2`` models): the columns chosen
+    in the outer folds and in how many sections, e.g. ``"raw_Sq+micro_Vvc in 10 of 12 folds; ..."``."""
+    if "features" not in cv_predictions.columns:
+        return {}
+    out = {}
+    for m, t in cv_predictions.groupby("model", sort=False):
+        f = t.drop_duplicates("section")["features"].dropna()
+        if f.empty:
+            continue
+        counts = f.value_counts()
+        out[str(m)] = "; ".join(f"{k} in {v} of {len(f)} folds" for k, v in counts.items())
+    return out
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -1053,6 +1480,7 @@ class RegressionAnalysis:
     ranking: pd.DataFrame
     best: str
     test_parameters: pd.DataFrame
+    skill: pd.DataFrame | None = None
 
 
 def run_analysis(design: Design, *, n_train: int = 27, seed: int = 0, grouped_by: str | None = None,
@@ -1067,7 +1495,11 @@ def run_analysis(design: Design, *, n_train: int = 27, seed: int = 0, grouped_by
     model by ``criterion`` (:func:`rank_models`) and, for each of ``figure11_models`` (``"best"`` = the
     winner, or any model name such as ``"pca:study"``), the predicted parameters of the test sites, fitted on
     the training sites. ``g``/``measured_dft`` as in :func:`score_predictions`. ``workers``: threads of the
-    cross-validation (:func:`cross_validated_predictions`; same numbers for any value).
+    cross-validation (:func:`cross_validated_predictions`; same numbers for any value). The intercept-only
+    :data:`MEAN_MODEL` and the baseline :data:`BASELINE_MODEL` are always cross-validated (appended to the CV
+    when ``models`` lacks them): they are the references of the prediction-skill table (:func:`prediction_skill`,
+    ``skill``). The best model is chosen among ``models`` only, so the references compete for it only when
+    listed (the default configuration lists both).
     """
     if design.Y is None:
         raise InputError(None, "a friction table (mu_s, mu_k, alpha per site)", column="mu_s")
@@ -1082,21 +1514,25 @@ def run_analysis(design: Design, *, n_train: int = 27, seed: int = 0, grouped_by
         t5, t6, st = table5(f), table6(f), table5_statistics(f)
         t5.insert(0, "rule", r), t6.insert(0, "rule", r), st.insert(0, "rule_config", r)
         parts5.append(t5), parts6.append(t6), stats.append(st)
-    cvp = cross_validated_predictions(design.X, design.Y, design.groups, models, seed=seed,
-                                      inner_folds=inner_folds, selection=selection, workers=workers)
+    listed = list(dict.fromkeys(models))
+    compared = list(dict.fromkeys(listed + [MEAN_MODEL, BASELINE_MODEL]))
+    dft = dft_targets(design.Y, measured_dft=measured_dft, g=g, speeds_kmh=speeds_kmh)
+    cvp = cross_validated_predictions(design.X, design.Y, design.groups, compared, seed=seed,
+                                      inner_folds=inner_folds, selection=selection, workers=workers, dft=dft, g=g)
     cvt = score_predictions(cvp, design.Y, g=g, measured_dft=measured_dft, speeds_kmh=speeds_kmh)
-    ranking = rank_models(cvt, criterion)
+    ranking = rank_models(cvt[cvt["model"].isin(listed)], criterion)
     best = str(ranking["model"].iloc[0])
+    skill = prediction_skill(cvt, best, notes=baseline_notes(cvp))
     preds = []
     for m in dict.fromkeys(best if m == "best" else m for m in figure11_models):
         p = predict_parameters(m, Xtr, Ytr, design.X.loc[test], groups_train=gtr.to_numpy(), seed=seed,
-                               inner_folds=inner_folds, selection=selection)
+                               inner_folds=inner_folds, selection=selection, dft_train=dft.loc[train], g_test=g)
         p.insert(0, "model", m)
         p.insert(0, "site", p.index.astype(str))
         preds.append(p.reset_index(drop=True))
     return RegressionAnalysis(train, test, fits, study, pd.concat(parts5, ignore_index=True),
                               pd.concat(parts6, ignore_index=True), pd.concat(stats, ignore_index=True), cvp, cvt,
-                              ranking, best, pd.concat(preds, ignore_index=True))
+                              ranking, best, pd.concat(preds, ignore_index=True), skill)
 
 
 def _write_csv(df: pd.DataFrame, path) -> None:
@@ -1111,7 +1547,8 @@ def write_analysis(analysis: RegressionAnalysis, directory) -> dict:
     """Write the analysis as CSV files (atomically: temporary name, then rename) into ``directory``.
 
     Files: split.csv, table5.csv, table5_statistics.csv, table6.csv, cv_predictions.csv, cv_table.csv,
-    cv_ranking.csv, test_parameters.csv, best_model.txt. Returns {name: path}.
+    cv_ranking.csv, test_parameters.csv, prediction_skill.csv (when ``analysis.skill`` is set),
+    best_model.txt. Returns {name: path}.
     """
     from pathlib import Path
 
@@ -1121,6 +1558,8 @@ def write_analysis(analysis: RegressionAnalysis, directory) -> dict:
     out = {"split": split, "table5": analysis.table5, "table5_statistics": analysis.statistics,
            "table6": analysis.table6, "cv_predictions": analysis.cv_predictions, "cv_table": analysis.cv_table,
            "cv_ranking": analysis.ranking, "test_parameters": analysis.test_parameters}
+    if analysis.skill is not None:
+        out["prediction_skill"] = analysis.skill
     paths = {}
     for name, df in out.items():
         paths[name] = d / f"{name}.csv"

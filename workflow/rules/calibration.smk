@@ -56,14 +56,41 @@ rule validate_speeds:
         "../scripts/validate_speeds.py"
 
 
+rule calibration_identifiability:
+    """Quality and identifiability of one site's calibration: fit vs the trace's noise, flags with reasons
+    (not_converged, at_bound, outside_law, fe_not_smooth, fit_beyond_noise), standard errors, profile-likelihood
+    intervals and the identified combinations (skidsim.identifiability; no FE runs)."""
+    input:
+        calibration=f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json",
+        traces=f"{RESULTS}/ingest/dft_traces.parquet",
+        validation=f"{RESULTS}/sites/{{site}}/validation.parquet",
+    output:
+        record=f"{RESULTS}/sites/{{site}}/identifiability_{{method}}.json",
+    params:
+        options=config["calibration"].get("identifiability", {}),
+        calibration_speeds=config["speeds"]["calibration_kmh"],
+        validation_speeds=config["speeds"]["validation_kmh"],
+    log:
+        "logs/calibration_identifiability/{site}_{method}.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
+    script:
+        "../scripts/calibration_identifiability.py"
+
+
 rule calibration_summary:
-    """Table 2 (parameters per site), the cost/fit comparison of the two methods, Figure 10."""
+    """Table 2 (parameters per site), the cost/fit comparison of the two methods, Figure 10, the campaign's
+    identifiability table and figure (per-site records of rule calibration_identifiability)."""
     input:
         ingest=INGEST,
         calibrations=expand(f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json", site=SITES, method=METHODS),
         validations=expand(f"{RESULTS}/sites/{{site}}/validation.parquet", site=SITES),
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
         ifi=f"{RESULTS}/ifi/ifi.csv",  # the PIARC/IFI speed model beside the FE laws (rule ifi in ifi.smk)
+        identifiability=expand(f"{RESULTS}/sites/{{site}}/identifiability_{{method}}.json", site=SITES,
+                               method=METHODS),
     output:
         table2=report(f"{RESULTS}/calibration/table2.csv", caption="../report/table2.csv.rst",
                       category="3 Back-calculation"),
@@ -77,6 +104,10 @@ rule calibration_summary:
                         category="3 Back-calculation"),
         curves=report(f"{RESULTS}/calibration/curves.png", caption="../report/curves.rst",
                       category="3 Back-calculation"),
+        identifiability=report(f"{RESULTS}/calibration/identifiability.csv",
+                               caption="../report/identifiability.rst", category="3 Back-calculation"),
+        identifiability_figure=report(f"{RESULTS}/calibration/identifiability.png",
+                                      caption="../report/identifiability_figure.rst", category="3 Back-calculation"),
     params:
         methods=METHODS,
     log:

@@ -7,7 +7,9 @@ REG = f"{RESULTS}/regression"
 
 
 rule regression:
-    """PCA regression per friction parameter on the training sites (Tables 5-6); CV comparison of models by section."""
+    """PCA regression per friction parameter on the training sites (Tables 5-6); CV comparison of models by section;
+    prediction-skill table (each model against the mean and the two-column OLS baseline, WARNING when the chosen
+    model does not beat both)."""
     input:
         wide=f"{RESULTS}/texture/campaign.parquet",
         params=f"{RESULTS}/calibration/parameters.parquet",
@@ -21,6 +23,10 @@ rule regression:
         table6=report(f"{REG}/table6.csv", caption="../report/table6.rst", category="4 Regression"),
         cv_table=report(f"{REG}/cv_table.csv", caption="../report/cv.rst", category="4 Regression"),
         cv_ranking=report(f"{REG}/cv_ranking.csv", caption="../report/cv.rst", category="4 Regression"),
+        skill=report(f"{REG}/prediction_skill.csv", caption="../report/prediction_skill.rst",
+                     category="4 Regression"),
+        skill_figure=report(f"{REG}/prediction_skill.png", caption="../report/prediction_skill.rst",
+                            category="4 Regression"),
         cv_predictions=f"{REG}/cv_predictions.csv",
         test_parameters=f"{REG}/test_parameters.csv",
         best_model=f"{REG}/best_model.txt",

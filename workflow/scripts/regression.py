@@ -5,7 +5,7 @@ import pandas as pd
 
 from skidsim import regression
 from skidsim.friction import ExponentialDecay
-from skidsim.plotting.regression import plot_cv_comparison, plot_table6
+from skidsim.plotting.regression import plot_cv_comparison, plot_prediction_skill, plot_table6
 from skidsim.runlog import setup_logging
 
 log = setup_logging(snakemake.log[0])
@@ -36,3 +36,9 @@ plot_cv_comparison(analysis.cv_table, snakemake.output.cv_figure)
 t6 = analysis.table6
 plot_table6(t6[t6["rule"] == cfg["rule"]], snakemake.output.table6_figure)
 log.info("best model by leave-one-section-out CV: %s", analysis.best)
+skill = analysis.skill
+plot_prediction_skill(skill, snakemake.output.skill_figure)
+log.info("prediction skill (section-grouped CV of the DFT pooled over %s km/h):\n%s",
+         cfg["prediction_speeds_kmh"], skill.drop(columns=["warning"]).to_string(index=False))
+if skill.attrs["warning"]:
+    log.warning("%s (%s)", skill.attrs["warning"], snakemake.output.skill)

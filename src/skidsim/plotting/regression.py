@@ -1,4 +1,5 @@
-"""Figures of the texture-to-friction regression: the study's Figure 11, the CV comparison, Table 6 as bars.
+"""Figures of the texture-to-friction regression: the study's Figure 11, the CV comparison, Table 6 as bars,
+the prediction-skill table.
 
 Inputs are the tables of :mod:`skidsim.regression` (``figure11_table``, ``cross_validate_models``, ``table6``).
 """
@@ -15,7 +16,8 @@ from matplotlib.ticker import MaxNLocator
 from skidsim.errors import InputError
 from skidsim.plotting.style import COLORS, figure
 
-_MODEL_COLORS = ["#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#666666"]
+_MODEL_COLORS = ["#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#666666",
+                 "#1f78b4", "#b15928", "#6a3d9a", "#b2df8a", "#fb9a99", "#000000"]
 
 
 def _need(df: pd.DataFrame, cols, what: str) -> None:
@@ -126,4 +128,52 @@ def plot_table6(coeffs: pd.DataFrame, path: str | Path) -> Path:
                 ax.set_title(f"{tg}: {b}", fontsize=8)
                 if i == len(targets) - 1:
                     ax.set_xlabel("coefficient per 1 SD")
+    return Path(path)
+
+
+#: Lowest R-squared drawn by :func:`plot_prediction_skill` (bars below it are cut and labelled with the value).
+SKILL_R2_FLOOR = -1.0
+
+
+def plot_prediction_skill(skill: pd.DataFrame, path: str | Path) -> Path:
+    """The prediction-skill table as bars: section-grouped CV R-squared of the DFT pooled over the prediction
+    speeds, one bar per model (best first), the chosen model filled dark, the intercept-only mean and the
+    baseline as dashed lines. When the chosen model does not beat both (``skill.attrs["warning"]`` or a
+    non-empty ``warning`` column), the title is a red WARNING and the chosen bar is red.
+
+    ``skill`` from :func:`skidsim.regression.prediction_skill`. Bars below ``SKILL_R2_FLOOR`` are cut there and
+    carry their value.
+    """
+    _need(skill, ("model", "role", "r2", "rmse", "warning"), "prediction-skill table")
+    if skill.empty:
+        raise InputError("prediction-skill table", "at least one model", column="model", got=0)
+    t = skill.sort_values("rmse", kind="stable").reset_index(drop=True)
+    warning = str(skill.attrs.get("warning") or "") or next((w for w in t["warning"].astype(str) if w), "")
+    roles = t["role"].fillna("").astype(str)
+    chosen = roles.str.contains("chosen")
+    r2 = t["r2"].to_numpy(float)
+    shown = np.maximum(r2, SKILL_R2_FLOOR)
+    colors = ["#b2182b" if (c and warning) else "#1b9e77" if c else "#bdbdbd" for c in chosen]
+    with figure(path, figsize=(7.0, 0.32 * len(t) + 1.8)) as (fig, ax):
+        y = np.arange(len(t))[::-1]
+        ax.barh(y, shown, color=colors)
+        for yy, v, s in zip(y, r2, shown):
+            ax.text(s + 0.01 if s >= 0 else 0.01, yy, f"{v:.3f}", va="center", fontsize=7)
+        for role, style in (("mean", ":"), ("baseline", "--")):
+            ref = t[roles.str.contains(role)]
+            if len(ref):
+                ax.axvline(float(ref["r2"].iloc[0]), color="k", ls=style, lw=1.0,
+                           label=f"{role}: {ref['model'].iloc[0]} ({float(ref['r2'].iloc[0]):.3f})")
+        ax.axvline(0.0, color="k", lw=0.6)
+        ax.set_yticks(y)
+        ax.set_yticklabels([f"{m} [{r}]" if r else m for m, r in zip(t["model"], roles)], fontsize=7)
+        ax.set_xlim(SKILL_R2_FLOOR - 0.05, 1.05)
+        ax.set_xlabel("section-grouped CV R-squared of the DFT, pooled over speeds (-)")
+        ax.legend(fontsize=7, loc="lower right")
+        if warning:
+            ax.set_title("WARNING: the chosen model does not beat the mean and the baseline", color="#b2182b",
+                         fontsize=9, fontweight="bold")
+        else:
+            ax.set_title("Prediction skill at unseen sections: the chosen model beats the mean and the baseline",
+                         fontsize=9)
     return Path(path)

@@ -1,0 +1,679 @@
+"""What a DFT trace determines of the exponential-decay law, per site (issue 25, item 2).
+
+A back-calculation (:mod:`skidsim.calibration`) returns one law ``mu(s) = mu_k + (mu_s - mu_k) exp(-alpha s)``
+per site. This module says how far to trust it, from what the calibration already produced (the trace, the
+calibrated law with the surrogate state it was fitted under, the FE verification runs and the FE runs at the
+calibration and validation speeds); it runs no FE.
+
+Units: speeds ``v`` in km/h, slip speed ``s = v / 3.6`` in m/s inside the law, ``alpha`` in s/m; ``mu`` and SN
+dimensionless (DFT scale, not x100).
+
+The FE mapping. Our calibration models the FE as ``SN(v) = a(v) + b(v) mu(v + d(v))`` (:func:`calibrate_fast`;
+``a, b, d`` per calibration speed, linear in between, constant beyond; ``d`` in km/h). The data are fitted *through
+that mapping*; this module uses the calibration's final mapping (:class:`SurrogateMap`; the identity for the study's
+bisection, which has none), so the law is judged on the scale the calibration fitted it.
+
+Per site (:func:`assess`):
+
+* **noise** (:func:`trace_noise`): the scatter of the trace around a local quadratic smooth (every point, the
+  points within ``+-noise_window_kmh``), ``sigma^2 = RSS / (n - 2 tr H + tr H'H)`` (H the smoother's hat
+  matrix), and the lag-one autocorrelation ``rho1`` of those residuals. Noise slower than the window counts
+  as curve: on correlated noise ``sigma`` is a lower bound.
+* **fit**: RMSE of the FE at the calibration and at the validation speeds against the measured curve
+  (linear interpolation of the trace, as the calibration uses it), in units of ``sigma``.
+* **flags** with reasons: ``not_converged``; ``at_bound`` (which parameter, which bound, and whether the
+  bound costs fit); ``outside_law`` (the best law of the family, with wide bounds, through the mapping, cannot
+  fit the trace points within ``outside_law_factor * sigma``); ``fe_not_smooth`` (the FE missed the surrogate by
+  more than ``fe_miss_max`` in a verification run after the surrogate had been corrected, or at the validation
+  speeds); ``fit_beyond_noise`` (FE RMSE at calibration or validation speeds above ``fit_noise_factor * sigma``).
+* **uncertainty**: the Jacobian ``J`` of the fitted curve (the points the calibration fitted) with respect to
+  ``(mu_s, mu_k, alpha)`` at the calibrated law, the Gauss-Newton covariance ``sigma_eff^2 (J'J)^-1`` with
+  ``sigma_eff^2 = max(sigma^2, s_resid^2) (1 + rho) / (1 - rho)`` (``s_resid``: the residual scatter of the law
+  family's best fit within the wide bounds, larger than ``sigma`` when the curve is outside the law or the noise is
+  correlated; ``rho``: the lag-one autocorrelation of those residuals in speed order, clipped to [0, 0.9], the
+  AR(1) variance inflation; a calibration bound that costs fit is reported as ``bound_cost_rmse``, not taken as
+  noise), standard errors, the eigen-decomposition of ``J'J`` in parameters
+  scaled by their bound widths (identified directions: 95 % half-width <= ``identified_rel_halfwidth`` of the
+  range), profile-likelihood intervals (``(SSE_profile - SSE_min) / sigma_eff^2 <= chi2_1(0.95)`` over the
+  calibration bounds; an interval that reaches a bound is open there, "not bounded within the bounds"), and
+  three curve combinations of the law over the calibration window, all in mu: the level at the window's middle,
+  the slope times the half-span and half the curvature times the half-span squared (identified when their 95 %
+  half-width <= ``identified_halfwidth_mu``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize_scalar
+from scipy.stats import chi2
+
+from skidsim.calibration import DEFAULT_BOUNDS, CalibrationResult, fit_exponential_decay, measured_arrays, measured_at
+from skidsim.errors import ConfigError, InputError
+from skidsim.friction import KMH_PER_MS, ExponentialDecay
+
+PARAMS = ("mu_s", "mu_k", "alpha")
+FLAGS = ("not_converged", "at_bound", "outside_law", "fe_not_smooth", "fit_beyond_noise")
+
+
+@dataclass(frozen=True)
+class IdentifiabilityOptions:
+    """Thresholds of the per-site quality and identifiability record (config ``calibration.identifiability``).
+
+    noise_window_kmh: half-width, km/h, of the local quadratic smooth the trace noise is measured around.
+    noise_min_points: fewest trace points in the analysis range for a noise estimate (fewer: sigma is NaN and
+        the flags that need it are not decided).
+    fit_noise_factor: ``fit_beyond_noise`` when the FE RMSE vs measured (calibration or validation speeds)
+        exceeds this many sigma.
+    outside_law_factor: ``outside_law`` when the RMSE of the law family's best fit to the trace points (wide
+        bounds ``wide_mu_max``, ``wide_alpha_max_s_per_m``, through the calibration's FE mapping) exceeds this
+        many sigma.
+    at_bound_rel_tol: a parameter within this fraction of its bound width of a bound is ``at_bound``.
+    fe_miss_max: SN; ``fe_not_smooth`` when |SN_FE - SN_surrogate| exceeds it in a verification run after the
+        surrogate was corrected at least once (iteration >= 2) or at a validation speed.
+    identified_rel_halfwidth: a parameter or an eigen-direction is identified when its 95 % half-width is at
+        most this fraction of the bound width.
+    identified_halfwidth_mu: a curve combination (mu units) is identified when its 95 % half-width is at most this.
+    profile_points: grid points per parameter of the profile likelihood over the calibration bounds.
+    alpha_grid_points: alpha grid (over its bounds) the other parameters are profiled on.
+    confidence: level of the profile intervals and half-widths (0.95).
+    wide_mu_max, wide_alpha_max_s_per_m: the law family's reach for ``outside_law`` (mu in [0, wide_mu_max],
+        alpha in [0, wide_alpha_max_s_per_m] s/m).
+    """
+
+    noise_window_kmh: float = 15.0
+    noise_min_points: int = 12
+    fit_noise_factor: float = 2.0
+    outside_law_factor: float = 1.5
+    at_bound_rel_tol: float = 0.01
+    fe_miss_max: float = 0.03
+    identified_rel_halfwidth: float = 0.05
+    identified_halfwidth_mu: float = 0.02
+    profile_points: int = 121
+    alpha_grid_points: int = 801
+    confidence: float = 0.95
+    wide_mu_max: float = 2.0
+    wide_alpha_max_s_per_m: float = 10.0
+
+    def __post_init__(self):
+        pos = ("noise_window_kmh", "fit_noise_factor", "outside_law_factor", "fe_miss_max",
+               "identified_rel_halfwidth", "identified_halfwidth_mu", "wide_mu_max", "wide_alpha_max_s_per_m")
+        for name in pos:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"calibration.identifiability.{name}: expected a positive number, got {v!r}")
+        if not (0 <= self.at_bound_rel_tol < 0.5):
+            raise ConfigError(f"calibration.identifiability.at_bound_rel_tol: expected 0 <= x < 0.5, "
+                              f"got {self.at_bound_rel_tol!r}")
+        if not (0 < self.confidence < 1):
+            raise ConfigError(f"calibration.identifiability.confidence: expected 0 < x < 1, got {self.confidence!r}")
+        for name, lo in (("noise_min_points", 5), ("profile_points", 11), ("alpha_grid_points", 51)):
+            if int(getattr(self, name)) < lo:
+                raise ConfigError(f"calibration.identifiability.{name}: expected an integer >= {lo}, "
+                                  f"got {getattr(self, name)!r}")
+
+    @classmethod
+    def from_config(cls, cfg: Mapping | None) -> "IdentifiabilityOptions":
+        """From the config mapping (None or {}: defaults); unknown keys raise :class:`ConfigError`."""
+        cfg = dict(cfg or {})
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(cfg) - known)
+        if unknown:
+            raise ConfigError(f"calibration.identifiability: unknown key(s) {unknown}; known: {sorted(known)}")
+        return cls(**cfg)
+
+
+@dataclass(frozen=True)
+class SurrogateMap:
+    """The calibration's FE mapping ``SN(v) = a(v) + b(v) mu(v + d(v))`` (v, d in km/h); linear interpolation
+    between ``speeds_kmh``, constant beyond (as :func:`skidsim.calibration.calibrate_fast`)."""
+
+    speeds_kmh: tuple[float, ...]
+    a: tuple[float, ...]
+    b: tuple[float, ...]
+    d_kmh: tuple[float, ...]
+
+    @classmethod
+    def identity(cls) -> "SurrogateMap":
+        return cls((40.0,), (0.0,), (1.0,), (0.0,))
+
+    @classmethod
+    def from_result(cls, result: CalibrationResult) -> "SurrogateMap":
+        """The final surrogate of an ``ours`` result; the identity for a result without one (the study)."""
+        s = result.settings or {}
+        if not all(k in s for k in ("speeds_kmh", "b")):
+            return cls.identity()
+        v = tuple(float(x) for x in s["speeds_kmh"])
+        n = len(v)
+        a = tuple(float(x) for x in (s.get("a") or [0.0] * n))
+        d = tuple(float(x) for x in (s.get("slip_offsets_kmh") or [0.0] * n)) if s.get("model", "slip") == "slip" \
+            else (0.0,) * n
+        b = tuple(float(x) for x in s["b"])
+        if not (len(a) == len(b) == len(d) == n):
+            raise InputError(None, "surrogate settings a, b, slip_offsets_kmh of one length per calibration speed",
+                             got={"speeds_kmh": v, "a": a, "b": b, "d": d})
+        return cls(v, a, b, d)
+
+    def terms(self, v_kmh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(a, b, effective slip speed in m/s) at ``v_kmh``."""
+        v = np.asarray(v_kmh, dtype=float)
+        sv = np.asarray(self.speeds_kmh)
+        a = np.interp(v, sv, self.a)
+        b = np.interp(v, sv, self.b)
+        s = (v + np.interp(v, sv, self.d_kmh)) / KMH_PER_MS
+        return a, b, s
+
+    def predict(self, law: ExponentialDecay, v_kmh) -> np.ndarray:
+        """Surrogate SN of ``law`` at ``v_kmh``."""
+        a, b, s = self.terms(v_kmh)
+        return a + b * law.mu(s)
+
+    def jacobian(self, law: ExponentialDecay, v_kmh) -> np.ndarray:
+        """d SN / d (mu_s, mu_k, alpha[s/m]) at ``v_kmh``: shape (n, 3)."""
+        _, b, s = self.terms(v_kmh)
+        e = np.exp(-law.alpha * s)
+        return np.column_stack([b * e, b * (1.0 - e), -b * (law.mu_s - law.mu_k) * s * e])
+
+
+# ----------------------------------------------------------------------------------------------------
+# noise
+
+
+def trace_noise(v_kmh, mu, *, window_kmh: float = 15.0, range_kmh: tuple[float, float] | None = None,
+                min_points: int = 12) -> dict:
+    """Noise of a trace: scatter around a local quadratic smooth (see the module docstring).
+
+    Every point in ``range_kmh`` (default: all) is compared with the quadratic fitted to the trace points within
+    ``+-window_kmh`` of it (the whole trace may contribute neighbours). Returns ``sigma`` (mu), ``rho1`` (lag-one
+    autocorrelation of the residuals in speed order), ``n`` (points used), ``dof`` (``n - 2 tr H + tr H'H``),
+    ``method``. The local smooth absorbs noise slower than the window, so on correlated noise sigma is biased
+    low (default synthetic campaign, AR(1) noise: 0.012 at 15 km/h, 0.0097 at 5 km/h, true 0.0136). With fewer
+    than ``min_points`` points, or a window holding fewer than 4 distinct speeds, sigma and rho1 are NaN.
+    """
+    v = np.asarray(v_kmh, dtype=float)
+    y = np.asarray(mu, dtype=float)
+    order = np.argsort(v, kind="stable")
+    v, y = v[order], y[order]
+    lo, hi = (v[0], v[-1]) if range_kmh is None else (float(range_kmh[0]), float(range_kmh[1]))
+    idx = np.flatnonzero((v >= lo - 1e-9) & (v <= hi + 1e-9))
+    out = {"sigma": float("nan"), "rho1": float("nan"), "n": int(idx.size), "dof": float("nan"),
+           "method": f"local quadratic +-{window_kmh:g} km/h, sigma^2 = RSS / (n - 2 tr H + tr H'H)"}
+    if idx.size < max(int(min_points), 5):
+        return out
+    resid = np.empty(idx.size)
+    tr_h = 0.0
+    tr_hh = 0.0
+    for k, i in enumerate(idx):
+        sel = np.flatnonzero(np.abs(v - v[i]) <= window_kmh)
+        if np.unique(v[sel]).size < 4:
+            return out
+        x = v[sel] - v[i]
+        X = np.column_stack([np.ones_like(x), x, x * x])
+        w = np.linalg.solve(X.T @ X, X.T)[0]  # row of the hat matrix: fitted value at v[i] = w @ y[sel]
+        resid[k] = y[i] - float(w @ y[sel])
+        tr_h += float(w[sel == i].sum())
+        tr_hh += float(w @ w)
+    dof = idx.size - 2.0 * tr_h + tr_hh
+    sigma = math.sqrt(float(resid @ resid) / dof) if dof > 0 else float("nan")
+    r = resid - resid.mean()
+    rho1 = float((r[:-1] @ r[1:]) / (r @ r)) if (r @ r) > 0 else 0.0
+    out.update(sigma=sigma, rho1=rho1, dof=float(dof))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------
+# profile likelihood
+
+
+def _profile_sse(param: str, values: np.ndarray, s: np.ndarray, b: np.ndarray, z: np.ndarray,
+                 bounds: Mapping[str, tuple[float, float]], alphas: np.ndarray) -> np.ndarray:
+    """min SSE over the other two parameters (box-bounded) with ``param`` fixed at each of ``values``.
+
+    Model ``z = b (mu_k (1 - e) + mu_s e)``, ``e = exp(-alpha s)``. For fixed alpha the model is linear in
+    (mu_k, mu_s): alpha fixed -> the exact 2-unknown box problem; mu_k or mu_s fixed -> the exact 1-unknown box
+    problem on every alpha of the grid ``alphas``, minimum over the grid refined by bounded Brent between the
+    best grid value's neighbours.
+    """
+    from skidsim.calibration import _box_ls2_many
+
+    lo2 = np.array([bounds["mu_k"][0], bounds["mu_s"][0]], dtype=float)
+    hi2 = np.array([bounds["mu_k"][1], bounds["mu_s"][1]], dtype=float)
+    if param == "alpha":
+        e = np.exp(-np.outer(values, s))
+        _, sse = _box_ls2_many(b * (1.0 - e), b * e, z, lo2, hi2)
+        return sse
+    e = np.exp(-np.outer(alphas, s))  # (A, n)
+    if param == "mu_k":
+        fixed_col, free_col, free = b * (1.0 - e), b * e, "mu_s"
+    elif param == "mu_s":
+        fixed_col, free_col, free = b * e, b * (1.0 - e), "mu_k"
+    else:
+        raise ValueError(f"unknown parameter {param!r}")
+    flo, fhi = (float(x) for x in bounds[free])
+
+    def sse_at(c: float, fixed, freec) -> np.ndarray:
+        r = z[None, :] - c * fixed  # (A, n)
+        ff = np.einsum("an,an->a", freec, freec)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = np.where(ff > 0, np.einsum("an,an->a", freec, r) / ff, flo)
+        res = r - np.clip(p, flo, fhi)[:, None] * freec
+        return np.einsum("an,an->a", res, res)
+
+    def cols(al: float):
+        e1 = np.exp(-al * s)[None, :]
+        return (b * (1.0 - e1), b * e1) if param == "mu_k" else (b * e1, b * (1.0 - e1))
+
+    out = np.empty(values.size)
+    for k, c in enumerate(values):
+        sse = sse_at(float(c), fixed_col, free_col)
+        i = int(np.argmin(sse))
+        best = float(sse[i])
+        left, right = float(alphas[max(i - 1, 0)]), float(alphas[min(i + 1, alphas.size - 1)])
+        if right > left:  # refine alpha between the grid neighbours (the profile is sharp when the rest is pinned)
+            res = minimize_scalar(lambda al: float(sse_at(float(c), *cols(al))[0]), bounds=(left, right),
+                                  method="bounded", options={"xatol": 1e-10})
+            if res.success and float(res.fun) < best:
+                best = float(res.fun)
+        out[k] = best
+    return out
+
+
+def _interval_from_profile(grid: np.ndarray, dev: np.ndarray, crit: float, lo: float, hi: float) -> dict:
+    """The confidence set {dev <= crit} on ``grid``: its hull (ends interpolated), whether each end is open at a
+    bound, and the number of disjoint pieces (two branches give 2)."""
+    inside = dev <= crit
+    if not inside.any():  # numerical: the minimum lies between grid points
+        k = int(np.argmin(dev))
+        return {"lower": float(grid[k]), "upper": float(grid[k]), "lower_open": False, "upper_open": False,
+                "n_pieces": 1}
+    ks = np.flatnonzero(inside)
+    i0, i1 = int(ks[0]), int(ks[-1])
+    pieces = 1 + int(np.sum(np.diff(ks) > 1))
+
+    def cross(i_out, i_in):
+        d0, d1 = dev[i_out], dev[i_in]
+        t = (crit - d0) / (d1 - d0) if d1 != d0 else 0.5
+        return float(grid[i_out] + t * (grid[i_in] - grid[i_out]))
+
+    lower = float(grid[0]) if i0 == 0 else cross(i0 - 1, i0)
+    upper = float(grid[-1]) if i1 == grid.size - 1 else cross(i1 + 1, i1)
+    return {"lower": lower, "upper": upper, "lower_open": i0 == 0 and lo == grid[0],
+            "upper_open": i1 == grid.size - 1 and hi == grid[-1], "n_pieces": pieces}
+
+
+def profile_intervals(v_kmh, y, mapping: SurrogateMap, bounds: Mapping[str, tuple[float, float]], sigma_eff: float,
+                      *, confidence: float = 0.95, points: int = 121, alpha_points: int = 801) -> dict:
+    """Profile-likelihood intervals of (mu_s, mu_k, alpha) within ``bounds`` for data ``y`` at ``v_kmh`` (km/h)
+    through ``mapping``, noise sd ``sigma_eff`` (mu). Each profile is evaluated on ``points`` values over the
+    bounds, and again on ``points`` values around the confidence set when fewer than 5 of them fall inside it (a
+    parameter pinned by the data or by the other parameters' bounds). Returns ``{"sse_min", "params": {name: {lower, upper,
+    lower_open, upper_open, n_pieces, grid, deviance}}}`` (deviance = (SSE_profile - SSE_min) / sigma_eff^2)."""
+    v = np.asarray(v_kmh, dtype=float)
+    a, b, s = mapping.terms(v)
+    z = np.asarray(y, dtype=float) - a
+    crit = float(chi2.ppf(confidence, 1))
+    alphas = np.linspace(float(bounds["alpha"][0]), float(bounds["alpha"][1]), int(alpha_points))
+    profiles = {}
+    for p in PARAMS:
+        lo, hi = (float(x) for x in bounds[p])
+        grid = np.linspace(lo, hi, int(points))
+        profiles[p] = (grid, _profile_sse(p, grid, s, b, z, bounds, alphas))
+    _, sse_fit = fit_exponential_decay(s * KMH_PER_MS, y, a=a, b=b, bounds=bounds)
+    sse_min = min(float(sse_fit), *(float(np.min(pr[1])) for pr in profiles.values()))
+    # a sharp profile (fewer than 5 grid values inside the set) is profiled again on a fine grid around the set
+    for p, (grid, sse) in list(profiles.items()):
+        ks = np.flatnonzero((sse - sse_min) / sigma_eff ** 2 <= crit)
+        if ks.size >= 5:
+            continue
+        k0, k1 = (int(ks[0]), int(ks[-1])) if ks.size else (int(np.argmin(sse)),) * 2
+        i0, i1 = max(k0 - 1, 0), min(k1 + 1, grid.size - 1)
+        fine = np.linspace(grid[i0], grid[i1], int(points))
+        both = np.concatenate([grid, fine])
+        order = np.argsort(both, kind="stable")
+        vals = np.concatenate([sse, _profile_sse(p, fine, s, b, z, bounds, alphas)])[order]
+        both = both[order]
+        keep = np.concatenate([[True], np.diff(both) > 0])
+        profiles[p] = (both[keep], vals[keep])
+    sse_min = min(sse_min, *(float(np.min(pr[1])) for pr in profiles.values()))
+    out = {"sse_min": sse_min, "critical_deviance": crit, "params": {}}
+    for p, (grid, sse) in profiles.items():
+        lo, hi = (float(x) for x in bounds[p])
+        dev = (sse - sse_min) / sigma_eff ** 2
+        rec = _interval_from_profile(grid, dev, crit, lo, hi)
+        rec.update(grid=grid.tolist(), deviance=dev.tolist())
+        out["params"][p] = rec
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------
+# local (Gauss-Newton) uncertainty
+
+
+def curve_combinations(law: ExponentialDecay, v_mid_kmh: float, half_span_kmh: float) -> tuple[np.ndarray, np.ndarray]:
+    """Three combinations of the law over a speed window, all in mu, and their gradients wrt (mu_s, mu_k, alpha).
+
+    level = mu(v_mid); slope = mu'(v_mid) * h; curvature = mu''(v_mid) * h^2 / 2 (derivatives in km/h, h the
+    half-span in km/h): the coefficients of the law's quadratic expansion on the window in ``(v - v_mid) / h``.
+    Returns (values (3,), gradients (3, 3): row per combination).
+    """
+    c = 1.0 / KMH_PER_MS
+    s = v_mid_kmh * c
+    h = half_span_kmh
+    al, amp = law.alpha, law.mu_s - law.mu_k
+    e = math.exp(-al * s)
+    level = law.mu_k + amp * e
+    slope = -amp * al * c * e * h
+    curv = 0.5 * amp * (al * c) ** 2 * e * h * h
+    g_level = [e, 1.0 - e, -amp * s * e]
+    g_slope = [-al * c * e * h, al * c * e * h, -amp * c * h * e * (1.0 - al * s)]
+    g_curv = [0.5 * (al * c) ** 2 * e * h * h, -0.5 * (al * c) ** 2 * e * h * h,
+              0.5 * amp * c * c * h * h * e * (2.0 * al - al * al * s)]
+    return np.array([level, slope, curv]), np.array([g_level, g_slope, g_curv])
+
+
+def local_uncertainty(J: np.ndarray, sigma_eff: float, widths: np.ndarray, *, z: float) -> dict:
+    """Gauss-Newton covariance ``sigma_eff^2 (J'J)^-1`` (through the eigen-decomposition, eigenvalues floored at
+    1e-14 of the largest), standard errors, and the eigen-decomposition of ``J'J`` in parameters scaled by
+    ``widths`` (their bound widths): per direction, the eigenvalue, the unit eigenvector (mu_s, mu_k, alpha in
+    range fractions) and the 95 % half-width along it in range fractions ``z sigma_eff / sqrt(lambda)``."""
+    S = np.diag(widths)
+    F = S @ (J.T @ J) @ S
+    lam, vec = np.linalg.eigh(F)
+    lam_f = np.maximum(lam, 1e-14 * max(float(lam[-1]), 1e-300))
+    cov_scaled = (vec / lam_f) @ vec.T * sigma_eff ** 2
+    cov = S @ cov_scaled @ S
+    directions = []
+    for k in np.argsort(lam):  # smallest eigenvalue (least determined) first
+        u = vec[:, k]
+        u = u if u[np.argmax(np.abs(u))] > 0 else -u
+        directions.append({"eigenvalue": float(lam[k]), "vector_range_units": dict(zip(PARAMS, map(float, u))),
+                           "halfwidth_range_fraction": float(z * sigma_eff / math.sqrt(lam_f[k]))})
+    return {"cov": cov, "se": np.sqrt(np.maximum(np.diag(cov), 0.0)), "directions": directions,
+            "condition_number": float(lam_f[-1] / lam_f[0])}
+
+
+# ----------------------------------------------------------------------------------------------------
+# the per-site record
+
+
+def _fe_misses(result: CalibrationResult, mapping: SurrogateMap, validation: pd.DataFrame | None,
+               cal_speeds: Sequence[float]) -> dict:
+    """Surrogate-vs-FE misses (SN): verification runs after the surrogate was corrected (iteration >= 2),
+    all verification runs, and the FE runs of the final law at the validation speeds."""
+    h = result.history
+    out = {"verify_all_max": float("nan"), "verify_corrected_max": float("nan"), "n_verify": 0,
+           "n_verify_corrected": 0, "validation_max": float("nan"), "n_validation": 0, "validation_runs": []}
+    if len(h) and "stage" in h:
+        ver = h[(h["stage"] == "verify") & h["sn_pred"].notna()]
+        miss = (ver["sn_sim"] - ver["sn_pred"]).abs()
+        out["n_verify"] = int(len(ver))
+        if len(ver):
+            out["verify_all_max"] = float(miss.max())
+        corr = miss[ver["iteration"] >= 2]
+        out["n_verify_corrected"] = int(len(corr))
+        if len(corr):
+            out["verify_corrected_max"] = float(corr.max())
+    if validation is not None and len(validation) and result.method == "ours":
+        cal = np.asarray(cal_speeds, dtype=float)
+        rows = validation[~np.isclose(validation["speed_kmh"].to_numpy(float)[:, None], cal[None, :]).any(axis=1)]
+        if len(rows):
+            pred = mapping.predict(result.params, rows["speed_kmh"].to_numpy(float))
+            d = rows["sn_sim"].to_numpy(float) - pred
+            out["validation_max"] = float(np.max(np.abs(d)))
+            out["n_validation"] = int(len(rows))
+            out["validation_runs"] = [{"speed_kmh": float(v), "sn_fe": float(x), "sn_surrogate": float(p)}
+                                      for v, x, p in zip(rows["speed_kmh"], rows["sn_sim"], pred)]
+    return out
+
+
+def _rmse(x) -> float:
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
+
+
+def assess(result: CalibrationResult, trace, validation: pd.DataFrame | None = None, *,
+           options: IdentifiabilityOptions | None = None, calibration_speeds_kmh: Sequence[float] | None = None,
+           validation_speeds_kmh: Sequence[float] = (), site: str | None = None,
+           source: str | None = None) -> dict:
+    """The quality and identifiability record of one calibration (see the module docstring).
+
+    result: the site's :class:`CalibrationResult` (ours or the study's); trace: the site's measured DFT curve
+    (DataFrame speed_kmh [km/h], mu); validation: the site's FE runs of this method's final law (rows of
+    ``validation.parquet`` for this method: speed_kmh, sn_sim, kind) or None; calibration_speeds_kmh: default the
+    result's measured speeds. Returns a JSON-ready dict (NaN where undecided).
+    """
+    opt = options or IdentifiabilityOptions()
+    v_all, mu_all = measured_arrays(trace, source=source)
+    st = result.settings or {}
+    cal = sorted(float(v) for v in (calibration_speeds_kmh if calibration_speeds_kmh is not None
+                                    else (st.get("speeds_kmh") or sorted(result.measured_kmh))))
+    val = sorted(float(v) for v in validation_speeds_kmh)
+    bounds = {k: tuple(float(x) for x in v) for k, v in (st.get("bounds") or st.get("intervals")
+                                                           or DEFAULT_BOUNDS).items()}
+    law = result.params
+    mapping = SurrogateMap.from_result(result)
+    # the points the law is judged on: those the calibration fitted (fit_on trace: the trace in the fit range)
+    if st.get("fit_on", "trace") == "trace":
+        fr = st.get("fit_range_kmh") or [cal[0], cal[-1]]
+        sel = (v_all >= float(fr[0]) - 1e-9) & (v_all <= float(fr[1]) + 1e-9)
+        v_fit, y_fit = v_all[sel], mu_all[sel]
+        fit_points = f"trace points {float(fr[0]):g}-{float(fr[1]):g} km/h"
+    else:
+        v_fit = np.asarray(cal)
+        y_fit = measured_at(trace, v_fit, source=source)
+        fit_points = "measured values at the calibration speeds"
+    n = int(v_fit.size)
+    rng_all = (min(cal + val), max(cal + val))
+    noise = trace_noise(v_all, mu_all, window_kmh=opt.noise_window_kmh, range_kmh=rng_all,
+                        min_points=opt.noise_min_points)
+    sigma = noise["sigma"]
+    have_sigma = math.isfinite(sigma) and sigma > 0
+
+    # the law family's best fit, within the calibration bounds and within wide bounds (its reach)
+    a, b, s = mapping.terms(v_fit)
+    v_eff = s * KMH_PER_MS
+    law_b, sse_b = fit_exponential_decay(v_eff, y_fit, a=a, b=b, bounds=bounds)
+    wide = {"mu_s": (0.0, opt.wide_mu_max), "mu_k": (0.0, opt.wide_mu_max), "alpha": (0.0, opt.wide_alpha_max_s_per_m)}
+    law_w, sse_w = fit_exponential_decay(v_eff, y_fit, a=a, b=b, bounds=wide)
+    # the noise scale of the uncertainty: residuals of the family's best fit within wide bounds (a bound that costs
+    # fit is reported as such, not mistaken for noise; a curve outside the law widens the intervals)
+    order = np.argsort(v_fit, kind="stable")
+    res_w = (mapping.predict(law_w, v_fit) - y_fit)[order]
+    res_w = res_w - res_w.mean()
+    rho_res = float((res_w[:-1] @ res_w[1:]) / (res_w @ res_w)) if n > 2 and (res_w @ res_w) > 0 else 0.0
+    rho = min(max(rho_res, 0.0), 0.9)
+    inflation = (1.0 + rho) / (1.0 - rho)
+    rmse_cal_law = _rmse(mapping.predict(law, v_fit) - y_fit)
+    rmse_bounded = math.sqrt(sse_b / n)
+    rmse_wide = math.sqrt(sse_w / n)
+
+    # FE fit at calibration and validation speeds
+    fe = {"calibration": float("nan"), "validation": float("nan")}
+    fe_points = []
+    if validation is not None and len(validation):
+        for kind, speeds in (("calibration", cal), ("validation", val)):
+            rows = validation[np.isclose(validation["speed_kmh"].to_numpy(float)[:, None],
+                                         np.asarray(speeds, dtype=float)[None, :]).any(axis=1)] if speeds else \
+                validation.iloc[:0]
+            inside = (rows["speed_kmh"] >= v_all[0] - 1e-9) & (rows["speed_kmh"] <= v_all[-1] + 1e-9)
+            rows = rows[inside]  # a speed the trace does not cover has no measured value to compare with
+            if len(rows):
+                m = measured_at(trace, rows["speed_kmh"].to_numpy(float), source=source)
+                fe[kind] = _rmse(rows["sn_sim"].to_numpy(float) - m)
+                fe_points += [{"speed_kmh": float(vv), "kind": kind, "sn_fe": float(x), "mu_measured": float(mm)}
+                              for vv, x, mm in zip(rows["speed_kmh"], rows["sn_sim"], m)]
+    if not math.isfinite(fe["calibration"]):
+        fs = result.final_sn()
+        pts = [(vv, fs[vv]) for vv in fs if any(abs(vv - c) < 1e-9 for c in cal)]
+        if pts:
+            m = measured_at(trace, [p[0] for p in pts], source=source)
+            fe["calibration"] = _rmse(np.array([p[1] for p in pts]) - m)
+    misses = _fe_misses(result, mapping, validation, cal)
+
+    # flags
+    flags: dict[str, str] = {}
+    if not result.converged:
+        flags["not_converged"] = result.message
+    at_bound = []
+    for p in PARAMS:
+        lo, hi = bounds[p]
+        val_p = float(getattr(law, p))
+        tol_p = opt.at_bound_rel_tol * (hi - lo)
+        for side, bnd in (("lower", lo), ("upper", hi)):
+            if abs(val_p - bnd) <= tol_p:
+                at_bound.append({"param": p, "bound": side, "bound_value": bnd, "value": val_p})
+    bound_cost = rmse_bounded - rmse_wide
+    if at_bound:
+        txt = ", ".join(f"{d['param']} = {d['value']:.4g} at its {d['bound']} bound {d['bound_value']:g}"
+                        for d in at_bound)
+        if have_sigma:
+            txt += (f"; relaxing the bounds lowers the law's RMSE on the trace by {bound_cost:.3g} "
+                    f"({bound_cost / sigma:.2f} sigma)")
+        flags["at_bound"] = txt
+    if have_sigma and rmse_wide > opt.outside_law_factor * sigma:
+        flags["outside_law"] = (f"the best law of the family (mu in [0, {opt.wide_mu_max:g}], alpha in "
+                                f"[0, {opt.wide_alpha_max_s_per_m:g}] s/m, through the FE mapping) misses the "
+                                f"{fit_points} by RMSE {rmse_wide:.4g} = {rmse_wide / sigma:.2f} sigma "
+                                f"> {opt.outside_law_factor:g} sigma (sigma {sigma:.4g})")
+    miss_parts = []
+    for key, label in (("verify_corrected_max", "a verification run after the surrogate was corrected"),
+                       ("validation_max", "a validation speed")):
+        if math.isfinite(misses[key]) and misses[key] > opt.fe_miss_max:
+            miss_parts.append(f"{label}: |SN_FE - SN_surrogate| = {misses[key]:.3g}")
+    if miss_parts:
+        flags["fe_not_smooth"] = "; ".join(miss_parts) + f" > {opt.fe_miss_max:g}"
+    if have_sigma:
+        beyond = [f"{k} speeds RMSE {fe[k]:.4g} = {fe[k] / sigma:.2f} sigma" for k in ("calibration", "validation")
+                  if math.isfinite(fe[k]) and fe[k] > opt.fit_noise_factor * sigma]
+        if beyond:
+            flags["fit_beyond_noise"] = "; ".join(beyond) + f" > {opt.fit_noise_factor:g} sigma (sigma {sigma:.4g})"
+
+    # uncertainty
+    z = float(math.sqrt(chi2.ppf(opt.confidence, 1)))
+    unc: dict[str, Any] = {"available": have_sigma}
+    if have_sigma:
+        s_resid = math.sqrt(sse_w / max(n - 3, 1))
+        sigma_eff = math.sqrt(max(sigma ** 2, s_resid ** 2) * inflation)
+        widths = np.array([bounds[p][1] - bounds[p][0] for p in PARAMS], dtype=float)
+        J = mapping.jacobian(law, v_fit)
+        loc = local_uncertainty(J, sigma_eff, widths, z=z)
+        prof = profile_intervals(v_fit, y_fit, mapping, bounds, sigma_eff, confidence=opt.confidence,
+                                 points=opt.profile_points, alpha_points=opt.alpha_grid_points)
+        v_mid, half = 0.5 * (cal[0] + cal[-1]), 0.5 * (cal[-1] - cal[0])
+        cvals, cgrad = curve_combinations(law, v_mid, half)
+        cse = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", cgrad, loc["cov"], cgrad), 0.0))
+        params = {}
+        for k, p in enumerate(PARAMS):
+            pr = prof["params"][p]
+            width = widths[k]
+            closed = not (pr["lower_open"] or pr["upper_open"])
+            params[p] = {"value": float(getattr(law, p)), "se": float(loc["se"][k]),
+                         "profile_lower": pr["lower"], "profile_upper": pr["upper"],
+                         "lower_open": bool(pr["lower_open"]), "upper_open": bool(pr["upper_open"]),
+                         "n_pieces": int(pr["n_pieces"]),
+                         "identified": bool(closed and pr["n_pieces"] == 1
+                                            and 0.5 * (pr["upper"] - pr["lower"])
+                                            <= opt.identified_rel_halfwidth * width),
+                         "deviance_at_value": float(np.interp(getattr(law, p), pr["grid"], pr["deviance"]))}
+        combos = {}
+        for name, cv, cs, unit in zip(("level", "slope", "curvature"), cvals, cse,
+                                      (f"mu at {v_mid:g} km/h", f"mu'(v) * {half:g} km/h",
+                                       f"mu''(v) * ({half:g} km/h)^2 / 2")):
+            combos[name] = {"value": float(cv), "se": float(cs), "halfwidth": float(z * cs), "definition": unit,
+                            "identified": bool(z * cs <= opt.identified_halfwidth_mu)}
+        for d in loc["directions"]:
+            d["identified"] = bool(d["halfwidth_range_fraction"] <= opt.identified_rel_halfwidth)
+        joint = (sse_of(mapping, law, v_fit, y_fit) - prof["sse_min"]) / sigma_eff ** 2
+        unc.update({"sigma_eff": sigma_eff, "residual_rho1": rho_res, "ar1_inflation": inflation,
+                    "residual_sd": s_resid,
+                    "params": params, "combinations": combos, "directions": loc["directions"],
+                    "condition_number": loc["condition_number"],
+                    "cov": {p: dict(zip(PARAMS, map(float, loc["cov"][i]))) for i, p in enumerate(PARAMS)},
+                    "joint_deviance_of_law": float(joint),
+                    "law_in_joint_region": bool(joint <= chi2.ppf(opt.confidence, 3)),
+                    "profiles": {p: {"grid": prof["params"][p]["grid"], "deviance": prof["params"][p]["deviance"]}
+                                 for p in PARAMS}})
+    within = (have_sigma and not any(k in flags for k in ("fit_beyond_noise",))
+              and math.isfinite(fe["calibration"]))
+    ident = [p for p in PARAMS if unc.get("params", {}).get(p, {}).get("identified")]
+    ident_c = [c for c, r in unc.get("combinations", {}).items() if r["identified"]]
+    statement = _statement(have_sigma, ident, ident_c, unc)
+    return {"site": site, "method": result.method, "law": law.as_dict(), "converged": bool(result.converged),
+            "bounds": {k: list(v) for k, v in bounds.items()}, "fit_points": fit_points, "n_fit_points": n,
+            "noise": noise, "within_noise": bool(within), "flags": sorted(flags), "reasons": flags,
+            "at_bound": at_bound,
+            "fit": {"rmse_fe_calibration": fe["calibration"], "rmse_fe_validation": fe["validation"],
+                    "rmse_fe_calibration_sigma": fe["calibration"] / sigma if have_sigma else float("nan"),
+                    "rmse_fe_validation_sigma": fe["validation"] / sigma if have_sigma else float("nan"),
+                    "rmse_law_on_trace": rmse_cal_law, "rmse_best_law_bounded": rmse_bounded,
+                    "rmse_best_law_wide": rmse_wide, "bound_cost_rmse": bound_cost,
+                    "best_law_bounded": law_b.as_dict(), "best_law_wide": law_w.as_dict(), "fe_points": fe_points},
+            "surrogate": {"speeds_kmh": list(mapping.speeds_kmh), "a": list(mapping.a), "b": list(mapping.b),
+                          "slip_offsets_kmh": list(mapping.d_kmh)},
+            "fe_misses": misses, "uncertainty": unc, "identified_params": ident,
+            "identified_combinations": ident_c, "statement": statement, "options": asdict(opt)}
+
+
+def sse_of(mapping: SurrogateMap, law: ExponentialDecay, v_kmh, y) -> float:
+    """Sum of squared differences between the surrogate curve of ``law`` and ``y`` at ``v_kmh``."""
+    r = mapping.predict(law, v_kmh) - np.asarray(y, dtype=float)
+    return float(r @ r)
+
+
+def _statement(have_sigma: bool, ident: list[str], ident_c: list[str], unc: dict) -> str:
+    if not have_sigma:
+        return "noise not estimable from the trace (too few points): uncertainty not computed"
+    parts = []
+    parts.append("identified parameters: " + (", ".join(ident) if ident else "none"))
+    parts.append("identified curve combinations: " + (", ".join(ident_c) if ident_c else "none"))
+    weak = [d for d in unc["directions"] if not d["identified"]]
+    for d in weak:
+        vec = d["vector_range_units"]
+        parts.append("not identified: the direction " + " ".join(f"{vec[p]:+.2f} {p}" for p in PARAMS)
+                     + f" (range units; 95 % half-width {d['halfwidth_range_fraction']:.2g} of the range)")
+    return "; ".join(parts)
+
+
+def table_row(rec: Mapping) -> dict:
+    """One flat row of the campaign table ``identifiability.csv`` from a record of :func:`assess`."""
+    row = {"site": rec["site"], "method": rec["method"], "mu_s": rec["law"]["mu_s"], "mu_k": rec["law"]["mu_k"],
+           "alpha_s_per_m": rec["law"]["alpha"], "converged": bool(rec["converged"]),
+           "sigma": rec["noise"]["sigma"], "rho1": rec["noise"]["rho1"], "within_noise": bool(rec["within_noise"]),
+           "flags": ";".join(rec["flags"]), "n_flags": len(rec["flags"])}
+    for f in FLAGS:
+        row[f] = f in rec["flags"]
+    row["at_bound_params"] = ";".join(f"{d['param']}:{d['bound']}" for d in rec["at_bound"])
+    for k in ("rmse_fe_calibration", "rmse_fe_validation", "rmse_fe_calibration_sigma", "rmse_fe_validation_sigma",
+              "rmse_best_law_wide", "bound_cost_rmse"):
+        row[k] = rec["fit"][k]
+    row["fe_miss_verify_corrected_max"] = rec["fe_misses"]["verify_corrected_max"]
+    row["fe_miss_validation_max"] = rec["fe_misses"]["validation_max"]
+    unc = rec["uncertainty"]
+    for p in PARAMS:
+        pr = unc.get("params", {}).get(p, {})
+        row[f"{p}_se"] = pr.get("se", float("nan"))
+        row[f"{p}_lower"] = pr.get("profile_lower", float("nan"))
+        row[f"{p}_upper"] = pr.get("profile_upper", float("nan"))
+        row[f"{p}_open"] = ("lower" if pr.get("lower_open") else "") + ("upper" if pr.get("upper_open") else "")
+        row[f"{p}_identified"] = bool(pr.get("identified", False))
+    for c in ("level", "slope", "curvature"):
+        cr = unc.get("combinations", {}).get(c, {})
+        row[f"{c}_value"] = cr.get("value", float("nan"))
+        row[f"{c}_halfwidth"] = cr.get("halfwidth", float("nan"))
+    dirs = unc.get("directions") or []
+    row["n_identified_directions"] = sum(bool(d["identified"]) for d in dirs)
+    if dirs:
+        w = dirs[0]["vector_range_units"]
+        row["weakest_direction"] = " ".join(f"{w[p]:+.2f}{p}" for p in PARAMS)
+        row["weakest_halfwidth_range_fraction"] = dirs[0]["halfwidth_range_fraction"]
+    else:
+        row["weakest_direction"] = ""
+        row["weakest_halfwidth_range_fraction"] = float("nan")
+    row["identified_params"] = ";".join(rec["identified_params"])
+    row["identified_combinations"] = ";".join(rec["identified_combinations"])
+    return row
