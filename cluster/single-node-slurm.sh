@@ -131,6 +131,9 @@ SlurmdPidFile=/run/slurmd.pid
 SlurmctldLogFile=/var/log/slurm/slurmctld.log
 SlurmdLogFile=/var/log/slurm/slurmd.log
 MpiDefault=none
+# a job asking for more than the partition's nodes have is refused by sbatch ("More processors requested than
+# permitted") instead of pending forever with reason PartitionConfig (SLURM default: NO)
+EnforcePartLimits=ALL
 ReturnToService=2
 SchedulerType=sched/backfill
 SelectType=select/cons_tres

@@ -278,3 +278,33 @@ def test_job_over_its_memory_is_reported_with_rule_and_site(slurm_run):
     assert "output: results/sites/E6-1/calibration_ours.json" in err[:1500], err[:2000]  # rule and site
     assert "SLURM status is: 'FAILED'" in err or "OUT_OF_MEMORY" in err, err[:2000]
     assert "exceeded memory limit" in out, out[-3000:]  # the SLURM log, shown by show-failed-logs
+
+
+def test_group_larger_than_the_node_is_refused_at_submission(slurm_run, slurm_cluster):
+    """Without the node's caps the site's texture group asks for 3 CPUs (separate_bands, mpd and reconstruct can
+    run at once) on a 2-CPU node. The single-node cluster sets EnforcePartLimits=ALL: sbatch refuses the job
+    ("More processors requested than permitted") and the run stops with "Error in group site_texture", instead of
+    the job pending forever (reason PartitionConfig). Snakemake 9.27 drops the plugin's message for a group job
+    (GroupJob.log_error ignores it), so SLURM's reason itself is not in the output. Runs last: it forces the
+    texture chain of E1-1, whose outputs Snakemake removes after the refused submission."""
+    cpus, _ = slurm_cluster["caps"]
+    if cpus >= 3:
+        pytest.skip(f"the smallest node has {cpus} CPUs: the uncapped group (3 CPUs) fits it")
+    conf = subprocess.run(["scontrol", "show", "config"], capture_output=True, text=True, check=True).stdout
+    assert re.search(r"^EnforcePartLimits\s*=\s*(ALL|ANY)", conf, flags=re.M), "cluster without EnforcePartLimits"
+    wd = slurm_run["dir"]
+    before = _job_ids()
+    t0 = time.monotonic()
+    r = subprocess.run(_cmd(wd, *_profile(), "--jobs", "1", "--retries", "0", "--forcerun", "despeckle",
+                            targets=("results/sites/E1-1/texture.parquet", "results/sites/E1-1/pavement.npz")),
+                       capture_output=True, text=True, env=_env(), cwd=CODE, timeout=600)
+    out = r.stdout + r.stderr
+    assert r.returncode != 0, out[-3000:]
+    assert "Error in group site_texture" in out, out[-3000:]
+    assert "Exiting because a job execution failed" in out, out[-3000:]
+    assert _job_ids() == before, "a job was queued although sbatch should have refused it"
+    assert time.monotonic() - t0 < 300  # refused at once, no wait for a job that can never start
+    # the same request by hand: SLURM's reason, which the run's output lacks
+    sb = subprocess.run(["sbatch", "--test-only", "-c", "3", "--mem", "5500", "--wrap", "true"],
+                        capture_output=True, text=True)
+    assert sb.returncode != 0 and "More processors requested than permitted" in sb.stderr, sb.stderr
