@@ -413,3 +413,44 @@ def test_write_outputs_and_figures(tmp_path):
     for p in figs.values():
         assert Path(p).stat().st_size > 1000 and f"]({Path(p).name})" in report
     assert not list(tmp_path.glob("*.tmp*"))
+
+
+def test_a_grouping_that_refines_the_named_one_ranks_below_it(tmp_path):
+    """Parsimony between section-level groupings: a free-text column that splits the mixes further (as the study's
+    'comment' does) holds the evidence of mix; where both are significant, mix is named and the finer one follows.
+    Without the refinement (the finer column no longer nests in mix) no such reordering applies."""
+    tables, truth = _campaign_dir(tmp_path, 0, "mix")
+    sites = tables["sites"].copy()
+    hidden = truth["variable"]
+    sec_rank = sites["section"].rank(method="dense").astype(int)
+    sites["comment"] = sites[hidden].astype(str) + np.where(sec_rank % 2 == 0, " with RAP", " with RAP + RAS")
+    r = _diagnose({**tables, "sites": sites}, seed=0, n_boot=50)
+    sig = [c.variable for c in r.causes if c.significant and c.level == "between-site" and c.kind == "main"]
+    assert "comment" in sig and hidden in sig, sig  # both carry the effect
+    assert r.named.variable == hidden and sig.index(hidden) < sig.index("comment"), sig
+
+
+def test_order_by_refinement_puts_the_coarser_grouping_first():
+    """A finer grouping ranked first by cv (comment: mixes split by RAS) moves right below the coarser one it refines
+    (mix); section identity also goes below mix; a column that does not nest in mix (binder cuts across it), a
+    numeric column and a cause of another kind keep their places."""
+    secs = [f"S{k}" for k in range(6)]
+    cov = pd.DataFrame({"section": secs, "mix": ["HMA", "HMA", "WMA", "WMA", "WMA", "SMA"],
+                        "comment": ["HMA+RAS", "HMA", "WMA+RAS", "WMA", "WMA", "SMA"],
+                        "binder": ["A", "B", "A", "B", "A", "B"], "station_ft": np.arange(6.0)},
+                       index=[f"{s}-1" for s in secs])
+
+    def cause(v, kind="main", dtype="categorical", sig=True):
+        return dg.Cause(variable=v, level="between-site", kind=kind, effect=0.01, cv_gain=0.5, p_value=0.01,
+                        p_adjusted=0.02, significant=sig, dtype=dtype, section_level=True)
+
+    order = [cause("comment"), cause("section"), cause("station_ft", dtype="numeric"), cause("binder"),
+             cause("mix"), cause("comment", kind="x_speed")]
+    out = [(c.variable, c.kind) for c in dg.order_by_refinement(order, cov)]
+    assert out == [("station_ft", "main"), ("binder", "main"), ("mix", "main"), ("comment", "main"),
+                   ("section", "main"), ("comment", "x_speed")], out
+    assert dg.refines(order[0], order[4], cov) and not dg.refines(order[4], order[0], cov)
+    assert not dg.refines(order[3], order[4], cov)  # binder does not nest in mix
+    # an insignificant coarser grouping moves nothing
+    assert [c.variable for c in dg.order_by_refinement([cause("comment"), cause("mix", sig=False)], cov)] == \
+        ["comment", "mix"]

@@ -572,8 +572,9 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     Ranking: significant causes first (statistical evidence decides whether a cause is named), among them by
     ``cv_msr`` (cross-validated explained residual mean square, mu^2: predictive evidence); a significant MPD x
     speed (the drainage hypothesis on the MPD column) ranks above every significant texture cluster that holds the
-    MPD column (the same variable's footprint without a mechanism); section identity
-    goes below a significant coarser section-level grouping of the same level and kind (parsimony); the within-site
+    MPD column (the same variable's footprint without a mechanism); a section-level grouping (section identity,
+    a free-text comment) goes below a significant coarser section-level grouping of the same level and kind whose
+    partition it refines (parsimony); the within-site
     functional form goes below a significant within-site covariate x speed (the covariate explains how the shared
     shape varies between sites, and its model nests the shared shape); the rest by
     ``p_adjusted`` and ``z``. ``n_permutations=None`` uses :func:`auto_permutations` for the larger family size
@@ -852,26 +853,7 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
                             family=u["family"], unit=u["name"], unit_p=float(unit_p[unit_of[j]]),
                             texture_pcs=int(t["texture_pcs"]), texture_pcs_cv=int(t["texture_pcs_cv"])))
     causes.sort(key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
-    # parsimony: section identity ranks below a significant coarser section-level grouping (e.g. mix) of the
-    # same level and kind, whose evidence it contains
-    n_sec_all = section_of.nunique()
-
-    def is_sid(c):
-        return c.significant and c.dtype == "categorical" and c.section_level and \
-            cov[c.variable].nunique() == n_sec_all
-
-    moved = True
-    while moved:
-        moved = False
-        for k, c in enumerate(causes):
-            if not is_sid(c):
-                continue
-            below = [j for j in range(k + 1, len(causes)) if causes[j].significant and causes[j].section_level
-                     and not is_sid(causes[j]) and causes[j].level == c.level and causes[j].kind == c.kind]
-            if below:
-                causes.insert(below[0], causes.pop(k))
-                moved = True
-                break
+    causes = order_by_refinement(causes, cov)
     # the physical hypothesis on the MPD column ranks above the texture clusters that hold MPD (e.g. drainage makes the
     # texture model misfit the level of shallow-texture sites: the macrotexture height cluster is significant
     # between sites; MPD x speed names the mechanism)
@@ -889,6 +871,37 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
     xs = [k for k, c in enumerate(causes) if c.significant and c.kind == "x_speed" and c.level == "within-site"]
     if ff and xs and ff[0] < xs[0]:
         causes.insert(xs[0], causes.pop(ff[0]))
+    return causes
+
+
+def refines(fine: Cause, coarse: Cause, cov: pd.DataFrame) -> bool:
+    """Whether ``fine`` and ``coarse`` are significant categorical section-level causes of the same level and kind
+    and the partition of the sites by ``fine`` refines the one by ``coarse``: each level of ``fine`` lies within one
+    level of ``coarse``, which has fewer levels. ``cov``: one row per site, the candidate columns."""
+    if not (fine.significant and coarse.significant and fine.section_level and coarse.section_level
+            and fine.dtype == "categorical" and coarse.dtype == "categorical" and fine.level == coarse.level
+            and fine.kind == coarse.kind and fine.variable in cov.columns and coarse.variable in cov.columns):
+        return False
+    pair = pd.DataFrame({"f": cov[fine.variable], "c": cov[coarse.variable]}).dropna()
+    return bool(len(pair)) and int(pair.groupby("f")["c"].nunique().max()) == 1 and \
+        pair["c"].nunique() < pair["f"].nunique()
+
+
+def order_by_refinement(causes: list[Cause], cov: pd.DataFrame) -> list[Cause]:
+    """Parsimony between section-level groupings: a cause moves right below the first significant coarser one of
+    the same level and kind whose partition it refines (:func:`refines`): section identity below mix, a free-text
+    comment that splits the mixes below mix. The finer one holds the coarser one's evidence; the coarser names the
+    effect with fewer levels. Other causes keep their order."""
+    causes = list(causes)
+    moved = True
+    while moved:  # terminates: a cause only moves below one with strictly fewer levels
+        moved = False
+        for k, c in enumerate(causes):
+            below = [j for j in range(k + 1, len(causes)) if refines(c, causes[j], cov)]
+            if below:
+                causes.insert(below[0], causes.pop(k))
+                moved = True
+                break
     return causes
 
 

@@ -258,11 +258,11 @@ def check_geometry(path, shape, dx_mm: float, dy_mm: float, req: Requirements) -
     x0 = req.strip_x0_mm if req.strip_x0_mm is not None else 0.0
     y0 = req.strip_y0_mm if req.strip_y0_mm is not None else 0.0
     if x0 + req.strip_length_mm > length * (1 + 1e-9) or x0 < 0:
-        out.append(InputError(path, f"a scan length (x, {cols} points x {dx_mm:g} mm) holding the FE strip "
+        out.append(InputError(path, f"a scan length (x, first to last of {cols} points at {dx_mm:g} mm) holding the FE strip "
                               f"(mesh.length_mm {req.strip_length_mm:g} mm from x0 {x0:g} mm)", column="extent_x",
                               got=f"{length:g} mm"))
     if y0 + req.strip_width_mm > width * (1 + 1e-9) or y0 < 0:
-        out.append(InputError(path, f"a scan width (y, {rows} points x {dy_mm:g} mm) holding the FE strip "
+        out.append(InputError(path, f"a scan width (y, first to last of {rows} points at {dy_mm:g} mm) holding the FE strip "
                               f"(mesh.width_mm {req.strip_width_mm:g} mm from y0 {y0:g} mm)", column="extent_y",
                               got=f"{width:g} mm"))
     if req.crop_y_mm is not None and req.crop_y_mm > width * (1 + 1e-9):
