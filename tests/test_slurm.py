@@ -29,23 +29,8 @@ pytestmark = pytest.mark.skipif(
     os.environ.get("SKIDSIM_TEST_SLURM") != "1" or not all(shutil.which(t) for t in ("sbatch", "squeue", "scontrol")),
     reason="needs SKIDSIM_TEST_SLURM=1 and a SLURM cluster (make test-slurm)")
 
-TINY = """
-synthetic:
-  seed: 5
-  sections: [E1, E6, C2]
-  sites_per_section: 1
-  shape: [512, 640]
-  spacing_mm: 0.2
-solver:
-  preset: quick
-  load_n: 11.8
-calibration:
-  study:
-    max_iter: 4
-mesh_study:
-  sizes_mm: []
-  speeds_kmh: [60]
-"""
+sys.path.insert(0, str(Path(__file__).parent))
+from test_cluster import TINY  # noqa: E402  the 3-site campaign of the fake-cluster test, one definition
 
 #: JSON keys that hold wall-clock timings: they differ between any two runs.
 TIMING_KEYS = re.compile(r"(^|_)(wall|overhead|elapsed)(_|$)")  # wall_s, fe_wall_s, wall_s_run, overhead_s
