@@ -996,16 +996,17 @@ def predict_parameters(model_name: str, X_train: pd.DataFrame, Y_train: pd.DataF
         if features is not None:
             out["features"] = features
         return out
-    out, features = {}, {}
+    if model_name != SUBSET_OLS:
+        return predict_targets(model_name, X_train, Y_train, X_test, groups_train=groups_train, seed=seed,
+                               inner_folds=inner_folds, selection=selection)[0]
+    out, features = {}, {}  # ols2 on the parameters: a subset per parameter (predict_targets shares one)
     for c in Y_train.columns:
         m = fit_model(model_name, X_train, Y_train[c], groups=groups_train, seed=seed, inner_folds=inner_folds,
                       selection=selection)
         out[c] = m.predict(X_test).to_numpy()
-        if model_name == SUBSET_OLS:
-            features[c] = m.hyper["features"]
+        features[c] = m.hyper["features"]
     out = pd.DataFrame(out, index=X_test.index)
-    if features:
-        out["features"] = "; ".join(f"{c}: {f}" for c, f in features.items())
+    out["features"] = "; ".join(f"{c}: {f}" for c, f in features.items())
     return out
 
 
@@ -1060,19 +1061,9 @@ def dft_targets(Y: pd.DataFrame | None, *, measured_dft: pd.DataFrame | None = N
         if Y is None:
             raise InputError(None, "a measured DFT or calibrated laws for the DFT targets", column="mu")
         long = predict_dft(Y.loc[sites], g, speeds_kmh)
-        mc = "mu"
     else:
         long = measured_dft
-        for c in ("site", "speed_kmh"):
-            if c not in long.columns:
-                raise InputError(measured_file, f"a '{c}' column", column=c, got=list(long.columns))
-        mc = _value_col(long, ("measured", "mu", "sn"), measured_file)
-    t = pd.DataFrame({"site": long["site"].astype(str), "key": _speed_key(long["speed_kmh"]),
-                      "v": long[mc].astype(float)})
-    if t.duplicated(["site", "key"]).any():
-        d = t[t.duplicated(["site", "key"])].iloc[0]
-        raise InputError(measured_file, "one value per site and speed", column="speed_kmh",
-                         got=f"{d['site']} at {d['key']:g} km/h")
+    t, mc = _keyed_values(long, ("measured", "mu", "sn"), measured_file, "v", unique=True)
     wide = t.pivot(index="site", columns="key", values="v")
     out = {}
     for v in speeds_kmh:
@@ -1163,6 +1154,23 @@ def _value_col(df: pd.DataFrame, candidates, file) -> str:
                      column=candidates[0], got=list(df.columns))
 
 
+def _keyed_values(df: pd.DataFrame, candidates, file, name: str, *, unique: bool) -> tuple[pd.DataFrame, str]:
+    """A long table (``site``, ``speed_kmh`` km/h, a value column among ``candidates``) as columns ``site``,
+    ``key`` (:func:`_speed_key`), ``speed_kmh`` and ``name``; ``unique``: one value per site and speed, else
+    InputError naming ``file``. Returns the table and the value column's name in ``df``."""
+    for c in ("site", "speed_kmh"):
+        if c not in df.columns:
+            raise InputError(file, f"a '{c}' column", column=c, got=list(df.columns))
+    vc = _value_col(df, candidates, file)
+    t = pd.DataFrame({"site": df["site"].astype(str), "key": _speed_key(df["speed_kmh"]),
+                      "speed_kmh": df["speed_kmh"].astype(float), name: df[vc].astype(float)})
+    if unique and t.duplicated(["site", "key"]).any():
+        d = t[t.duplicated(["site", "key"])].iloc[0]
+        raise InputError(file, "one value per site and speed", column="speed_kmh",
+                         got=f"{d['site']} at {d['key']:g} km/h")
+    return t, vc
+
+
 def figure11_table(pred_dft: pd.DataFrame, measured_dft: pd.DataFrame, *,
                    pred_file="predicted DFT", measured_file="measured DFT") -> pd.DataFrame:
     """Per site and speed: predicted, measured, relative error ``(pred - meas)/meas``, ``within_10pct``.
@@ -1170,21 +1178,9 @@ def figure11_table(pred_dft: pd.DataFrame, measured_dft: pd.DataFrame, *,
     Both tables are long form with ``site``, ``speed_kmh`` (km/h) and a value column (``mu``, or ``predicted``
     / ``measured``, or ``sn``). Every predicted (site, speed) must have a measurement, else InputError.
     """
-    for df, f in ((pred_dft, pred_file), (measured_dft, measured_file)):
-        for c in ("site", "speed_kmh"):
-            if c not in df.columns:
-                raise InputError(f, f"a '{c}' column", column=c, got=list(df.columns))
-    pc = _value_col(pred_dft, ("predicted", "mu", "sn"), pred_file)
-    mc = _value_col(measured_dft, ("measured", "mu", "sn"), measured_file)
-    a = pd.DataFrame({"site": pred_dft["site"].astype(str), "key": _speed_key(pred_dft["speed_kmh"]),
-                      "speed_kmh": pred_dft["speed_kmh"].astype(float), "predicted": pred_dft[pc].astype(float)})
-    b = pd.DataFrame({"site": measured_dft["site"].astype(str), "key": _speed_key(measured_dft["speed_kmh"]),
-                      "measured": measured_dft[mc].astype(float)})
-    if b.duplicated(["site", "key"]).any():
-        d = b[b.duplicated(["site", "key"])].iloc[0]
-        raise InputError(measured_file, "one value per site and speed", column="speed_kmh",
-                         got=f"{d['site']} at {d['key']:g} km/h")
-    t = a.merge(b, on=["site", "key"], how="left")
+    a, _ = _keyed_values(pred_dft, ("predicted", "mu", "sn"), pred_file, "predicted", unique=False)
+    b, mc = _keyed_values(measured_dft, ("measured", "mu", "sn"), measured_file, "measured", unique=True)
+    t = a.merge(b.drop(columns="speed_kmh"), on=["site", "key"], how="left")
     miss = t[t["measured"].isna()]
     if len(miss):
         raise InputError(measured_file, f"a measurement for site {miss['site'].iloc[0]} at "
