@@ -451,6 +451,9 @@ def test_order_by_refinement_puts_the_coarser_grouping_first():
                    ("section", "main"), ("comment", "x_speed")], out
     assert dg.refines(order[0], order[4], cov) and not dg.refines(order[4], order[0], cov)
     assert not dg.refines(order[3], order[4], cov)  # binder does not nest in mix
+    # section identity goes below a section-level number too (station_ft: one value per section)
+    assert [c.variable for c in dg.order_by_refinement([cause("section"), cause("station_ft", dtype="numeric")],
+                                                       cov)] == ["station_ft", "section"]
     # an insignificant coarser grouping moves nothing
     assert [c.variable for c in dg.order_by_refinement([cause("comment"), cause("mix", sig=False)], cov)] == \
         ["comment", "mix"]

@@ -875,16 +875,19 @@ def screen_candidates(residuals: pd.DataFrame, sites: pd.DataFrame, texture_wide
 
 
 def refines(fine: Cause, coarse: Cause, cov: pd.DataFrame) -> bool:
-    """Whether ``fine`` and ``coarse`` are significant categorical section-level causes of the same level and kind
-    and the partition of the sites by ``fine`` refines the one by ``coarse``: each level of ``fine`` lies within one
-    level of ``coarse``, which has fewer levels. ``cov``: one row per site, the candidate columns."""
+    """Whether ``fine`` (a significant categorical section-level cause) refines ``coarse`` (a significant
+    section-level cause of the same level and kind): each level of ``fine`` lies within one value of ``coarse``,
+    and ``coarse`` has fewer distinct values, or as many and is a number (a section-constant number names a
+    quantity, section identity only the sections). ``cov``: one row per site, the candidate columns."""
     if not (fine.significant and coarse.significant and fine.section_level and coarse.section_level
-            and fine.dtype == "categorical" and coarse.dtype == "categorical" and fine.level == coarse.level
-            and fine.kind == coarse.kind and fine.variable in cov.columns and coarse.variable in cov.columns):
+            and fine.dtype == "categorical" and fine.level == coarse.level and fine.kind == coarse.kind
+            and fine.variable in cov.columns and coarse.variable in cov.columns):
         return False
     pair = pd.DataFrame({"f": cov[fine.variable], "c": cov[coarse.variable]}).dropna()
-    return bool(len(pair)) and int(pair.groupby("f")["c"].nunique().max()) == 1 and \
-        pair["c"].nunique() < pair["f"].nunique()
+    if not len(pair) or int(pair.groupby("f")["c"].nunique().max()) != 1:
+        return False
+    n_fine, n_coarse = pair["f"].nunique(), pair["c"].nunique()
+    return n_coarse < n_fine or (n_coarse == n_fine and coarse.dtype != "categorical")
 
 
 def order_by_refinement(causes: list[Cause], cov: pd.DataFrame) -> list[Cause]:
@@ -894,7 +897,7 @@ def order_by_refinement(causes: list[Cause], cov: pd.DataFrame) -> list[Cause]:
     effect with fewer levels. Other causes keep their order."""
     causes = list(causes)
     moved = True
-    while moved:  # terminates: a cause only moves below one with strictly fewer levels
+    while moved:  # terminates: a cause moves only below a number or a grouping with strictly fewer levels
         moved = False
         for k, c in enumerate(causes):
             below = [j for j in range(k + 1, len(causes)) if refines(c, causes[j], cov)]
