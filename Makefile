@@ -8,7 +8,7 @@ CORES ?= 2
 STAMP := $(VENV)/.skidsim-installed
 TEST_STAMP := $(VENV)/.skidsim-test-installed
 
-.PHONY: reproduce test setup setup-test system-deps report dryrun clean-results benchmarks test-slurm
+.PHONY: reproduce test lint setup setup-test system-deps report dryrun clean-results benchmarks test-slurm
 
 $(STAMP): requirements.lock pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -43,6 +43,13 @@ reproduce: $(STAMP)
 ## Run the test suite.
 test: setup-test
 	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q $(PYTEST_ARGS)
+
+## Lint and format check (ruff, snakefmt; pinned in requirements-test.lock, configured in pyproject.toml). Fix with
+## `$(BIN)/ruff check --fix . && $(BIN)/ruff format . && $(BIN)/snakefmt Snakefile workflow/rules/*.smk`.
+lint: $(TEST_STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/snakefmt --check Snakefile workflow/rules/*.smk
 
 ## Run tests/test_slurm.py on this machine made a single-node SLURM cluster (cluster/single-node-slurm.sh, needs
 ## root), without and then with accounting (slurmdbd); a cluster this target started is stopped at the end.

@@ -17,6 +17,7 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 
+
 wildcard_constraints:
     site="[A-Za-z0-9][A-Za-z0-9_.-]*",
     section="[A-Za-z0-9][A-Za-z0-9_.-]*",
@@ -32,13 +33,14 @@ include: "workflow/rules/ifi.smk"
 include: "workflow/rules/regression.smk"
 include: "workflow/rules/diagnosis.smk"
 include: "workflow/rules/fe_extension.smk"
+include: "workflow/rules/report.smk"
 include: "workflow/rules/targets.smk"
 
 
 rule all:
+    default_target: True
     input:
         all_targets(),
-    default_target: True
     localrule: True
 
 

@@ -11,9 +11,9 @@ DFT traces: the exponential-decay base times a drainage-like factor exp(-k (v - 
 ``skidsim.truth``, so the law cannot represent them exactly) plus white noise 0.005, 1 km/h spacing 5..85 km/h.
 
 Usage: ``python benchmarks/bench_calibration.py [--sites 12] [--seed 2026] [--scenario realistic|flat]``
-(``flat``: nearly speed-independent sites, the case where the study's bisection converges at once). Prints the comparison table
-(per site and total: FE runs, steps, wall, fit RMSE at calibration and validation speeds for both methods),
-Figure-10 statistics, Table 2 and medians of the measured overhead.
+(``flat``: nearly speed-independent sites, the case where the study's bisection converges at once). Prints the
+comparison table (per site and total: FE runs, steps, wall, fit RMSE at calibration and validation speeds for
+both methods), Figure-10 statistics, Table 2 and medians of the measured overhead.
 """
 
 from __future__ import annotations
@@ -25,12 +25,27 @@ import time
 import numpy as np
 import pandas as pd
 
-from skidsim.calibration import (FEOutcome, calibrate_fast, calibrate_study, comparison_table, figure10_statistics,
-                                 fit_exponential_decay, simulate_speeds, table2, validation_table)
+from skidsim.calibration import (
+    FEOutcome,
+    JointOptions,
+    StudyOptions,
+    calibrate_fast,
+    calibrate_study,
+    comparison_table,
+    figure10_statistics,
+    fit_exponential_decay,
+    simulate_speeds,
+    table2,
+    validation_table,
+)
 from skidsim.friction import ExponentialDecay
 
 ELEMENTS = 15_360
 ELEMENT_STEPS_PER_S = 5e6
+#: FE budgets of the tables in docs/calibration.md ("Measured (benchmarks/bench_calibration.py)"): 15 evaluations
+#: per bisection search and 15 FE runs for ours (the workflow's config/config.yaml uses 8 and 12)
+STUDY_MAX_ITER = 15
+OURS_MAX_FE_RUNS = 15
 
 
 def steps_for(speed_kmh: float) -> int:
@@ -76,10 +91,12 @@ def real_simulator(i, site, cache_dir):
 
     from skidsim.calibration import FECache, fe_simulator
     from skidsim.solver import RandomTexture, SolverConfig
+
     cfg = SolverConfig.campaign(progress_every_s=1e9)
     cache_dir = cache_dir or tempfile.mkdtemp(prefix="bench_calibration_")
-    cache = FECache(f"{cache_dir}/{site}.parquet", site=site, pavement=f"RandomTexture(seed={i})",
-                    solver=repr(cfg.as_dict()))
+    cache = FECache(
+        f"{cache_dir}/{site}.parquet", site=site, pavement=f"RandomTexture(seed={i})", solver=repr(cfg.as_dict())
+    )
     return cache.wrap(fe_simulator(RandomTexture(seed=i), cfg))
 
 
@@ -87,11 +104,18 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--sites", type=int, default=12)
     ap.add_argument("--seed", type=int, default=2026)
-    ap.add_argument("--scenario", choices=("realistic", "flat"), default="realistic",
-                    help="realistic: truth-like decay + drainage; flat: nearly speed-independent friction")
-    ap.add_argument("--real-solver", action="store_true",
-                    help="use skidsim.solver.simulate (campaign preset, RandomTexture pavements) instead of the "
-                         "surrogate; minutes per site")
+    ap.add_argument(
+        "--scenario",
+        choices=("realistic", "flat"),
+        default="realistic",
+        help="realistic: truth-like decay + drainage; flat: nearly speed-independent friction",
+    )
+    ap.add_argument(
+        "--real-solver",
+        action="store_true",
+        help="use skidsim.solver.simulate (campaign preset, RandomTexture pavements) instead of the "
+        "surrogate; minutes per site",
+    )
     ap.add_argument("--model", choices=("ratio", "slip"), default="slip", help="calibrate_fast surrogate model")
     ap.add_argument("--cache-dir", default=None, help="FECache directory for --real-solver (default: a temp dir)")
     args = ap.parse_args()
@@ -104,7 +128,9 @@ def main():
         if args.real_solver:
             sim = real_simulator(i, site, args.cache_dir)
         meas[site] = curve
-        results[site] = {"study": calibrate_study(sim, curve), "ours": calibrate_fast(sim, curve, model=args.model)}
+        study_opt = StudyOptions(max_iter=STUDY_MAX_ITER)
+        ours_opt = JointOptions(model=args.model, max_fe_runs=OURS_MAX_FE_RUNS)
+        results[site] = {"study": calibrate_study(sim, curve, study_opt), "ours": calibrate_fast(sim, curve, ours_opt)}
         runs[site] = {m: simulate_speeds(sim, r.params, (20, 30, 40, 50, 60, 70)) for m, r in results[site].items()}
         for m, r in results[site].items():
             over[m].append(r.overhead_s)
@@ -112,21 +138,45 @@ def main():
     cmp = comparison_table(results, vt)
     pd.set_option("display.width", 200)
     pd.set_option("display.max_columns", 30)
-    print("== comparison (" + ("real solver, campaign preset, measured wall s" if args.real_solver else
-                               "surrogate FE, wall modelled at 3.1 ms/step") + "; rmse in SN units) ==")
-    cols = ["site", "study_fe_runs", "study_steps", "study_wall_s", "study_converged", "study_rmse_cal",
-            "study_rmse_val", "ours_fe_runs", "ours_steps", "ours_wall_s", "ours_converged", "ours_rmse_cal",
-            "ours_rmse_val", "steps_ratio"]
+    print(
+        "== comparison ("
+        + (
+            "real solver, campaign preset, measured wall s"
+            if args.real_solver
+            else "surrogate FE, wall modelled at 3.1 ms/step"
+        )
+        + "; rmse in SN units) =="
+    )
+    cols = [
+        "site",
+        "study_fe_runs",
+        "study_steps",
+        "study_wall_s",
+        "study_converged",
+        "study_rmse_cal",
+        "study_rmse_val",
+        "ours_fe_runs",
+        "ours_steps",
+        "ours_wall_s",
+        "ours_converged",
+        "ours_rmse_cal",
+        "ours_rmse_val",
+        "steps_ratio",
+    ]
     print(cmp[cols].to_string(index=False, float_format=lambda x: f"{x:.4g}"))
     print("\n== Figure 10 statistics ==")
     print(figure10_statistics(vt).to_string(index=False, float_format=lambda x: f"{x:.4f}"))
     print("\n== Table 2 ==")
     print(table2(results).to_string(index=False, float_format=lambda x: f"{x:.4f}"))
     tot = cmp.set_index("site").loc["TOTAL"]
-    print(f"\ntotal steps: study {int(tot.study_steps)}, ours {int(tot.ours_steps)}, ratio {tot.steps_ratio:.3f} "
-          f"(target <= 0.333); validation RMSE study {tot.study_rmse_val:.4f}, ours {tot.ours_rmse_val:.4f}")
-    print(f"median measured overhead per site (s, no FE): study {statistics.median(over['study']):.4f}, "
-          f"ours {statistics.median(over['ours']):.4f}  (2 shared cores, disturbed by other jobs)")
+    print(
+        f"\ntotal steps: study {int(tot.study_steps)}, ours {int(tot.ours_steps)}, ratio {tot.steps_ratio:.3f} "
+        f"(target <= 0.333); validation RMSE study {tot.study_rmse_val:.4f}, ours {tot.ours_rmse_val:.4f}"
+    )
+    print(
+        f"median measured overhead per site (s, no FE): study {statistics.median(over['study']):.4f}, "
+        f"ours {statistics.median(over['ours']):.4f}  (2 shared cores, disturbed by other jobs)"
+    )
     v = np.arange(20.0, 61.0)
     y = meas["S01"].set_index("speed_kmh").loc[v, "mu"].to_numpy()
     ts = []

@@ -1,15 +1,23 @@
 """Benchmark: Heightfield.evaluate for 1,400 points (one explicit-solver contact query) vs scipy."""
-import time, sys
+
+import time
+
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
+
 from skidsim.reconstruct import Heightfield
 
+
 def median_us(f, n=3000, warm=50):
-    for _ in range(warm): f()
+    for _ in range(warm):
+        f()
     ts = np.empty(n)
     for k in range(n):
-        t0 = time.perf_counter(); f(); ts[k] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        f()
+        ts[k] = time.perf_counter() - t0
     return np.median(ts) * 1e6
+
 
 rng = np.random.default_rng(0)
 hf = Heightfield(rng.normal(0, 0.5e-3, (81, 230)), 0.1143 / 229, 0.5e-3)
@@ -25,5 +33,8 @@ t_rand = median_us(lambda: hf.evaluate(px[rp], py[rp]))
 print(f"Heightfield.evaluate (z, dz/dx, dz/dy), 1,353 pts: median {t_ours:.1f} us")
 print(f"  same points in random order (incl. permutation): {t_rand:.1f} us")
 print(f"RectBivariateSpline.ev x3 (z, dz/dx, dz/dy): median {t_rbs:.1f} us  ratio {t_rbs / t_ours:.1f}x")
-t0 = time.perf_counter(); hf2 = Heightfield(hf.z_m, hf.dx_m, hf.dy_m); hf2.evaluate(0.01, 0.01); t_setup = time.perf_counter() - t0
-print(f"coefficient setup (first call): {t_setup*1e3:.2f} ms")
+t0 = time.perf_counter()
+hf2 = Heightfield(hf.z_m, hf.dx_m, hf.dy_m)
+hf2.evaluate(0.01, 0.01)
+t_setup = time.perf_counter() - t0
+print(f"coefficient setup (first call): {t_setup * 1e3:.2f} ms")

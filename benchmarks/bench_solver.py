@@ -7,6 +7,9 @@ and the campaign-vs-reference SN comparison at 20/40/60 km/h. ``--pavement PATH`
 pavement (a Heightfield ``.npz`` of skidsim.reconstruct, e.g. ``results/sites/E1-1/pavement.npz``): the kernel
 against the naive gather/scatter in the same run, then one slide (default: the reference preset, 0.5 mm, 20 km/h,
 the full 114.3 mm clamped to the strip) with wall time, element-steps/s and the share of each phase of the step.
+``--campaign-cost [--repeat N]`` times only the campaign preset (full slide, RandomTexture) at 20/40/60 km/h with
+each contact variant (``stick_limit``, ``penalty``, ``penalty`` + Rayleigh damping), the variants interleaved and
+each run repeated N times (median), and prints the cost per FE run relative to ``stick_limit``.
 Timings on a shared machine are disturbed by other processes: report them with that caveat.
 """
 
@@ -22,9 +25,9 @@ from threadpoolctl import threadpool_limits
 from skidsim.friction import ExponentialDecay
 from skidsim.slidermesh import SliderMesh
 from skidsim.solver import RandomTexture, SolverConfig, simulate
-from skidsim.solver.surfaces import to_heightfield
 from skidsim.solver.kernel import NaiveKernel, StructuredKernel
 from skidsim.solver.material import RubberMaterial, element_stiffness
+from skidsim.solver.surfaces import to_heightfield
 
 LAW = ExponentialDecay(0.4, 0.35, 0.6)  # the study's mesh-study parameters
 
@@ -46,10 +49,12 @@ def bench_kernel(element_mm: float, repeat: int) -> None:
     u = np.random.default_rng(0).standard_normal((3, mesh.nz + 1, mesh.ny + 1, mesh.nx + 1))
     out = np.empty_like(u)
     res = {}
-    for name, k in [("structured (8 slabs + 1 dgemm)", StructuredKernel(mesh, ke)),
-                    ("naive gather + bincount scatter", NaiveKernel(mesh, ke, "bincount")),
-                    ("naive gather + np.add.at scatter", NaiveKernel(mesh, ke, "add_at"))]:
-        t = median_time(lambda: k.force(u, out), repeat, 10)
+    for name, k in [
+        ("structured (8 slabs + 1 dgemm)", StructuredKernel(mesh, ke)),
+        ("naive gather + bincount scatter", NaiveKernel(mesh, ke, "bincount")),
+        ("naive gather + np.add.at scatter", NaiveKernel(mesh, ke, "add_at")),
+    ]:
+        t = median_time(lambda k=k: k.force(u, out), repeat, 10)
         res[name] = t
         print(f"  {name:36s} {t * 1e3:7.3f} ms/eval  {mesh.n_elements / t / 1e6:6.2f} M element-steps/s")
     s = res["structured (8 slabs + 1 dgemm)"]
@@ -61,9 +66,11 @@ def bench_kernel(element_mm: float, repeat: int) -> None:
 def bench_run(cfg: SolverConfig, speed_kmh: float, label: str, pavement) -> object:
     r = simulate(pavement, speed_kmh, LAW, cfg)
     per_step = r.wall_s / r.n_steps
-    print(f"  {label:34s} SN {r.sn:.4f}  {r.n_steps:6d} steps  dt {r.dt_s * 1e6:.3f} us  wall {r.wall_s:6.1f} s "
-          f"({per_step * 1e3:.2f} ms/step, {r.element_steps_per_s / 1e6:.2f} M el-steps/s, "
-          f"energy residual {100 * r.energy_residual_fraction():.3f} %)")
+    print(
+        f"  {label:34s} SN {r.sn:.4f}  {r.n_steps:6d} steps  dt {r.dt_s * 1e6:.3f} us  wall {r.wall_s:6.1f} s "
+        f"({per_step * 1e3:.2f} ms/step, {r.element_steps_per_s / 1e6:.2f} M el-steps/s, "
+        f"energy residual {100 * r.energy_residual_fraction():.3f} %)"
+    )
     return r
 
 
@@ -78,14 +85,48 @@ def bench_pavement(path: str, speed_kmh: float, slide_mm: float, element_mm: flo
     cfg = SolverConfig.reference(element_mm=element_mm, slide_length_mm=slide_mm, progress_every_s=1e9)
     print(f"one slide: {element_mm} mm, {speed_kmh:g} km/h, {slide_mm} mm requested, no mass scaling")
     r = bench_run(cfg, speed_kmh, f"{element_mm} mm {speed_kmh:g} km/h", pav)
-    print(f"  slide {r.slide_length_mm:.1f} mm (clamped {r.slide_clamped}), {r.n_steps} steps "
-          f"({r.preload_steps} preload), dt {r.dt_s * 1e6:.4f} us (slope bound |grad z|^2 "
-          f"{r.meta['slope_bound']:.1f}), wall {r.wall_s:.1f} s, {r.element_steps_per_s / 1e6:.2f} M element-steps/s")
+    print(
+        f"  slide {r.slide_length_mm:.1f} mm (clamped {r.slide_clamped}), {r.n_steps} steps "
+        f"({r.preload_steps} preload), dt {r.dt_s * 1e6:.4f} us (slope bound |grad z|^2 "
+        f"{r.meta['slope_bound']:.1f}), wall {r.wall_s:.1f} s, {r.element_steps_per_s / 1e6:.2f} M element-steps/s"
+    )
     ph = r.meta["phase_s"]
     for name, t in sorted(ph.items(), key=lambda kv: -kv[1]):
         print(f"    {name:16s} {t:7.1f} s  {100 * t / r.wall_s:5.1f} %  {1e3 * t / r.n_steps:.3f} ms/step")
     tr = r.trace
     print(f"  mean contact nodes {tr['contact_nodes'].mean():.1f}, SN {r.sn:.4f}")
+
+
+#: Contact variants of the cost comparison: label -> SolverConfig overrides.
+VARIANTS = {
+    "stick_limit": dict(friction_model="stick_limit"),
+    "penalty": dict(friction_model="penalty"),
+    "penalty + rayleigh": dict(friction_model="penalty", slide_damping_model="rayleigh"),
+}
+
+
+def bench_campaign_cost(repeat: int, pav) -> None:
+    """Median wall time per FE run of the campaign preset with each contact variant (interleaved runs)."""
+    walls = {(k, v): [] for k in VARIANTS for v in (20, 40, 60)}
+    sn = {}
+    for _ in range(repeat):
+        for v in (20, 40, 60):
+            for k, over in VARIANTS.items():
+                r = simulate(pav, v, LAW, SolverConfig.campaign(progress_every_s=1e9, **over))
+                walls[(k, v)].append(r.wall_s)
+                sn[(k, v)] = (r.sn, r.n_steps, r.dt_s, r.mean_slip_speed_ms)
+    base = {v: statistics.median(walls[("stick_limit", v)]) for v in (20, 40, 60)}
+    print(f"campaign preset, RandomTexture, median of {repeat} interleaved runs, one BLAS thread")
+    for k in VARIANTS:
+        tot = sum(statistics.median(walls[(k, v)]) for v in (20, 40, 60))
+        for v in (20, 40, 60):
+            w = statistics.median(walls[(k, v)])
+            s_, n, dt, slip = sn[(k, v)]
+            print(
+                f"  {k:20s} {v:3d} km/h: SN {s_:.4f}, {n:6d} steps, dt {dt * 1e6:.3f} us, wall {w:6.2f} s "
+                f"({100 * (w / base[v] - 1):+.1f} %), slip speed seen {slip:.2f} m/s (sliding {v / 3.6:.2f})"
+            )
+        print(f"  {k:20s} mean per run {tot / 3:.2f} s ({100 * (tot / sum(base.values()) - 1):+.1f} % vs stick_limit)")
 
 
 def main() -> None:
@@ -96,8 +137,14 @@ def main() -> None:
     ap.add_argument("--speed", type=float, default=20.0, help="km/h (with --pavement)")
     ap.add_argument("--slide-mm", type=float, default=114.3, help="mm (with --pavement)")
     ap.add_argument("--element-mm", type=float, default=0.5, help="mm (with --pavement)")
+    ap.add_argument("--campaign-cost", action="store_true", help="cost per FE run of each contact variant only")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per variant and speed (with --campaign-cost)")
     a = ap.parse_args()
     rep = 3 if a.quick else 7
+    if a.campaign_cost:
+        with threadpool_limits(1, user_api="blas"):
+            bench_campaign_cost(a.repeat, to_heightfield(RandomTexture(), 0.1e-3))
+        return
     if a.pavement:
         with threadpool_limits(1, user_api="blas"):
             bench_pavement(a.pavement, a.speed, a.slide_mm, a.element_mm, rep)
@@ -113,14 +160,17 @@ def main() -> None:
         ref = SolverConfig.reference(slide_length_mm=8.0, window_start_mm=3.0, progress_every_s=1e9)
         r = bench_run(ref, 20, "reference 0.5 mm, 8 mm", pav)
         n_full = int(np.ceil(114.3e-3 / (20 / 3.6 * r.dt_s))) + r.preload_steps
-        print(f"  -> extrapolated full 114.3 mm slide at 20 km/h: {n_full} steps, "
-              f"{n_full * r.wall_s / r.n_steps:.0f} s (goal <= 100 s)")
+        print(
+            f"  -> extrapolated full 114.3 mm slide at 20 km/h: {n_full} steps, "
+            f"{n_full * r.wall_s / r.n_steps:.0f} s (goal <= 100 s)"
+        )
 
         print("mass scaling (1.0 mm mesh, 30 mm slide, 20 km/h): effect on SN")
         base = None
         for ms in (1.0, 4.0, 16.0, 64.0):
-            cfg = SolverConfig(element_mm=1.0, slide_length_mm=30.0, window_start_mm=5.0, mass_scaling=ms,
-                               progress_every_s=1e9)
+            cfg = SolverConfig(
+                element_mm=1.0, slide_length_mm=30.0, window_start_mm=5.0, mass_scaling=ms, progress_every_s=1e9
+            )
             r = bench_run(cfg, 20, f"mass scaling {ms:g}", pav)
             base = r.sn if base is None else base
             print(f"    SN change vs no mass scaling: {100 * (r.sn / base - 1):+.2f} %")

@@ -16,9 +16,9 @@ import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from skidsim import synthetic as S  # noqa: E402
+from skidsim import synthetic as S
 
 
 def main() -> None:
@@ -45,16 +45,30 @@ def main() -> None:
         cpu.append(time.process_time() - c0)
         tr = sd.truth
         curve = dict(zip(tr["curve"]["speeds_kmh"], tr["curve"]["total"]))
-        rows.append((row["site"], tr["descriptors"]["mpd_mm"], tr["descriptors"]["ssk"],
-                     tr["descriptors"]["micro_sq_mm"], curve[20.0], curve[60.0], len(sd.dft),
-                     float(np.isnan(sd.surface.heights).mean())))
-        print(f"{row['site']:6s} wall {wall[-1]:5.2f} s  cpu {cpu[-1]:5.2f} s  MPD {rows[-1][1]:.3f} mm  "
-              f"Ssk {rows[-1][2]:+.2f}  microSq {rows[-1][3]:.4f} mm  DFT20 {rows[-1][4]:.3f}  "
-              f"DFT60 {rows[-1][5]:.3f}  points {rows[-1][6]}  NaN {rows[-1][7]:.4f}", flush=True)
+        rows.append(
+            (
+                row["site"],
+                tr["descriptors"]["mpd_mm"],
+                tr["descriptors"]["ssk"],
+                tr["descriptors"]["micro_sq_mm"],
+                curve[20.0],
+                curve[60.0],
+                len(sd.dft),
+                float(np.isnan(sd.surface.heights).mean()),
+            )
+        )
+        print(
+            f"{row['site']:6s} wall {wall[-1]:5.2f} s  cpu {cpu[-1]:5.2f} s  MPD {rows[-1][1]:.3f} mm  "
+            f"Ssk {rows[-1][2]:+.2f}  microSq {rows[-1][3]:.4f} mm  DFT20 {rows[-1][4]:.3f}  "
+            f"DFT60 {rows[-1][5]:.3f}  points {rows[-1][6]}  NaN {rows[-1][7]:.4f}",
+            flush=True,
+        )
     shape = tuple(cfg["shape"])
     print(f"\nshape {shape}, {len(idx)} sites; design_campaign {t_design * 1000:.1f} ms")
-    print(f"generate_site median wall {np.median(wall):.2f} s (min {min(wall):.2f}, max {max(wall):.2f}); "
-          f"median CPU {np.median(cpu):.2f} s (min {min(cpu):.2f}, max {max(cpu):.2f})")
+    print(
+        f"generate_site median wall {np.median(wall):.2f} s (min {min(wall):.2f}, max {max(wall):.2f}); "
+        f"median CPU {np.median(cpu):.2f} s (min {min(cpu):.2f}, max {max(cpu):.2f})"
+    )
     a = np.array([r[1:] for r in rows], dtype=float)
     for k, name in enumerate(["MPD mm", "Ssk", "micro Sq mm", "DFT20", "DFT60", "trace points", "NaN share"]):
         print(f"  {name:12s} min {a[:, k].min():8.4f}  median {np.median(a[:, k]):8.4f}  max {a[:, k].max():8.4f}")

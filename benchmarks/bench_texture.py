@@ -35,8 +35,16 @@ import numpy as np
 from scipy import ndimage
 
 from skidsim.surface import Surface
-from skidsim.texture import (TextureOptions, areal_parameters, characterise, despeckle, despeckle_detail, fill_invalid,
-                             remove_form, separate_bands)
+from skidsim.texture import (
+    TextureOptions,
+    areal_parameters,
+    characterise,
+    despeckle,
+    despeckle_detail,
+    fill_invalid,
+    remove_form,
+    separate_bands,
+)
 from skidsim.texture.features import feature_parameters
 from skidsim.texture.height import height_parameters
 from skidsim.texture.hybrid import sdr
@@ -72,16 +80,22 @@ def ours_subset(s: Surface, workers: int) -> dict:
     sp = spatial_parameters(z, s.dx, s.dy, workers=workers)
     mr = material_ratio_parameters(z)
     fp = feature_parameters(z, s.dx, s.dy, exclude_edge=True)
-    return {"Sa": hp["Sa"], "Sq": hp["Sq"], "Sdr": sdr(z, s.dx, s.dy), "Sal": sp.Sal, "Str": sp.Str, "Sk": mr["Sk"],
-            "S10z": fp["S10z"]}
+    return {
+        "Sa": hp["Sa"],
+        "Sq": hp["Sq"],
+        "Sdr": sdr(z, s.dx, s.dy),
+        "Sal": sp.Sal,
+        "Str": sp.Str,
+        "Sk": mr["Sk"],
+        "S10z": fp["S10z"],
+    }
 
 
 def peer_subset(s: Surface) -> dict:
     import surfalize
 
     p = surfalize.Surface(s.heights, s.dx, s.dy)
-    return {"Sa": p.Sa(), "Sq": p.Sq(), "Sdr": p.Sdr(), "Sal": p.Sal(), "Str": p.Str(), "Sk": p.Sk(),
-            "S10z": p.S10z()}
+    return {"Sa": p.Sa(), "Sq": p.Sq(), "Sdr": p.Sdr(), "Sal": p.Sal(), "Str": p.Str(), "Sk": p.Sk(), "S10z": p.S10z()}
 
 
 def _raw_sq(s: Surface) -> float:
@@ -98,13 +112,16 @@ def despeckle_study(path: str) -> None:
     from skidsim.plotting.texture import plot_despeckle_flat_binder
 
     spec = importlib.util.spec_from_file_location(
-        "flat_binder", Path(__file__).resolve().parents[1] / "tests" / "test_texture_despeckle.py")
+        "flat_binder", Path(__file__).resolve().parents[1] / "tests" / "test_texture_despeckle.py"
+    )
     fb = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(fb)
     shape = (2048, 2448)
     cases = []
-    print("case | rule | replaced on clean % | MPD error on clean % | raw Sq error on clean % | "
-          "recall (3-5 mm spikes) | genuine replaced on spiked % | MPD error on spiked % | CPU s per scan")
+    print(
+        "case | rule | replaced on clean % | MPD error on clean % | raw Sq error on clean % | "
+        "recall (3-5 mm spikes) | genuine replaced on spiked % | MPD error on spiked % | CPU s per scan"
+    )
     for n, share in enumerate((0.29, 0.55, 0.67)):
         h = fb.flat_binder_scan(share, seed=n, shape=shape)
         hs, mask = fb.inject_spikes(h, seed=100 + n)
@@ -112,8 +129,10 @@ def despeckle_study(path: str) -> None:
         at_code = float(np.mean(h == 0.0))
         rows_half = float(np.mean([np.unique(r, return_counts=True)[1].max() > 0.5 * r.size for r in h]))
         mpd0, sq0 = mean_profile_depth(clean).mpd_mm, _raw_sq(clean)
-        label = (f"binder {100 * at_code:.0f} % of the points at one height code ({100 * rows_half:.0f} % of rows "
-                 f"more than half on one code); clean MPD {mpd0:.3f} mm")
+        label = (
+            f"binder {100 * at_code:.0f} % of the points at one height code ({100 * rows_half:.0f} % of rows "
+            f"more than half on one code); clean MPD {mpd0:.3f} mm"
+        )
         print(f"-- {label}")
         # the figure's window: 30 mm around a spike, on a row more than half on the binder code (where there is
         # one), with the most stone points in the window
@@ -122,10 +141,17 @@ def despeckle_study(path: str) -> None:
             if rows_half > 0 and np.mean(h[i] == 0.0) <= 0.5:
                 continue
             j0 = int(np.clip(j - 300, 0, shape[1] - 601))
-            best = max(best, (int(np.sum(h[i, j0:j0 + 601] > 0.3)), int(i), j0))
+            best = max(best, (int(np.sum(h[i, j0 : j0 + 601] > 0.3)), int(i), j0))
         _, row, j0 = best
-        case = {"label": label + f"; row {row}", "dx_mm": 0.05, "row": hs[row], "rules": {}, "replaced_pct": {},
-                "mpd_err_pct": {}, "x0_mm": j0 * 0.05}
+        case = {
+            "label": label + f"; row {row}",
+            "dx_mm": 0.05,
+            "row": hs[row],
+            "rules": {},
+            "replaced_pct": {},
+            "mpd_err_pct": {},
+            "x0_mm": j0 * 0.05,
+        }
         for rule in ("mad", "tukey", "local"):
             t = time.process_time()
             rc = despeckle_detail(clean, rule)
@@ -134,9 +160,11 @@ def despeckle_study(path: str) -> None:
             mpd_c = mean_profile_depth(rc.surface).mpd_mm
             mpd_s = mean_profile_depth(rs.surface).mpd_mm
             err_c, err_s = 100 * (mpd_c / mpd0 - 1), 100 * (mpd_s / mpd0 - 1)
-            print(f"{share:.2f} | {rule} | {100 * rc.n_replaced / h.size:.4f} | {err_c:+.1f} | "
-                  f"{100 * (_raw_sq(rc.surface) / sq0 - 1):+.1f} | {(rs.mask & mask).sum() / mask.sum():.4f} | "
-                  f"{100 * (rs.mask & ~mask).sum() / h.size:.4f} | {err_s:+.1f} | {dt:.2f}")
+            print(
+                f"{share:.2f} | {rule} | {100 * rc.n_replaced / h.size:.4f} | {err_c:+.1f} | "
+                f"{100 * (_raw_sq(rc.surface) / sq0 - 1):+.1f} | {(rs.mask & mask).sum() / mask.sum():.4f} | "
+                f"{100 * (rs.mask & ~mask).sum() / h.size:.4f} | {err_s:+.1f} | {dt:.2f}"
+            )
             case["rules"][rule] = rs.surface.heights[row]
             case["replaced_pct"][rule] = 100 * rs.n_replaced / h.size
             case["mpd_err_pct"][rule] = err_s
@@ -153,8 +181,15 @@ def despeckle_synthetic(sites: list[str]) -> None:
     design = syn.design_campaign(c)
     dx = float(c["spacing_mm"])
     meta = {"x3p_dtype": "I", "z_increment_mm": float(c["z_quantum_mm"])}
-    keys = [("raw", "Sq"), ("raw", "Ssk"), ("raw", "Sp"), ("macro", "Sq"), ("micro", "Sq"), ("micro", "Sku"),
-            ("profile", "MPD")]
+    keys = [
+        ("raw", "Sq"),
+        ("raw", "Ssk"),
+        ("raw", "Sp"),
+        ("macro", "Sq"),
+        ("micro", "Sq"),
+        ("micro", "Sku"),
+        ("profile", "MPD"),
+    ]
     opt = {"groups": ("height",)}
     for site in sites:
         row = design[design.site == site].iloc[0].to_dict()
@@ -172,11 +207,14 @@ def despeckle_synthetic(sites: list[str]) -> None:
             res = despeckle_detail(s, rule)
             dt = time.process_time() - t
             tab = characterise(s, dict(opt, despeckle_method=rule))[0].set_index(["band", "parameter"])["value"]
-            errs = ", ".join(f"{b} {p} {tab[(b, p)]:.4g} ({100 * (tab[(b, p)] / ref[(b, p)] - 1):+.2f} %)"
-                             for b, p in keys)
-            print(f"  {rule}: replaced {100 * res.n_replaced / spiked.size:.4f} %, speckle recall "
-                  f"{(res.mask & speckle).sum() / speckle.sum():.3f}, genuine replaced {(res.mask & ~speckle).sum()}, "
-                  f"CPU {dt:.2f} s; vs speckle-free: {errs}")
+            errs = ", ".join(
+                f"{b} {p} {tab[(b, p)]:.4g} ({100 * (tab[(b, p)] / ref[(b, p)] - 1):+.2f} %)" for b, p in keys
+            )
+            print(
+                f"  {rule}: replaced {100 * res.n_replaced / spiked.size:.4f} %, speckle recall "
+                f"{(res.mask & speckle).sum() / speckle.sum():.3f}, genuine replaced {(res.mask & ~speckle).sum()}, "
+                f"CPU {dt:.2f} s; vs speckle-free: {errs}"
+            )
 
 
 def main() -> None:
@@ -207,9 +245,11 @@ def main() -> None:
         times.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
     peak = rss_mb()
-    print(f"whole stage ({a.rows} x {a.cols}, workers {a.workers}): median wall {statistics.median(times):.2f} s "
-          f"over {a.repeats} run(s) {[round(t, 2) for t in times]}, CPU {statistics.median(cpu):.2f} s; "
-          f"peak RSS {peak:.0f} MB (input and interpreter {base:.0f} MB)")
+    print(
+        f"whole stage ({a.rows} x {a.cols}, workers {a.workers}): median wall {statistics.median(times):.2f} s "
+        f"over {a.repeats} run(s) {[round(t, 2) for t in times]}, CPU {statistics.median(cpu):.2f} s; "
+        f"peak RSS {peak:.0f} MB (input and interpreter {base:.0f} MB)"
+    )
     # per-step breakdown (one run)
     t_rule = {}
     for rule in ("mad", "tukey", "local"):
@@ -217,8 +257,9 @@ def main() -> None:
         des, _ = despeckle(scan, rule)
         t_rule[rule] = (time.perf_counter() - t, time.process_time() - c)  # the last, local (the default), goes on
     t_des = t_rule["local"][0]
-    print("  despeckle per rule (wall / CPU): " + ", ".join(f"{k} {v[0]:.2f} / {v[1]:.2f} s"
-                                                         for k, v in t_rule.items()))
+    print(
+        "  despeckle per rule (wall / CPU): " + ", ".join(f"{k} {v[0]:.2f} / {v[1]:.2f} s" for k, v in t_rule.items())
+    )
     t = time.perf_counter()
     mean_profile_depth(des)
     t_mpd = time.perf_counter() - t
@@ -248,10 +289,14 @@ def main() -> None:
         t_ours += dt_o
         t_peer += dt_p
         rel = {k: (o[k] / p[k] - 1) if p[k] else np.nan for k in o}
-        print(f"  subset {band}: ours {dt_o:.2f} s, surfalize {dt_p:.2f} s, ratio {dt_p / dt_o:.1f}x; "
-              "relative differences " + ", ".join(f"{k} {v:+.2e}" for k, v in rel.items()))
-    print(f"subset Sa Sq Sdr Sal Str Sk S10z on {a.bands}: ours {t_ours:.2f} s, surfalize {t_peer:.2f} s, "
-          f"speed-up {t_peer / t_ours:.1f}x; peak RSS incl. surfalize {rss_mb():.0f} MB")
+        print(
+            f"  subset {band}: ours {dt_o:.2f} s, surfalize {dt_p:.2f} s, ratio {dt_p / dt_o:.1f}x; "
+            "relative differences " + ", ".join(f"{k} {v:+.2e}" for k, v in rel.items())
+        )
+    print(
+        f"subset Sa Sq Sdr Sal Str Sk S10z on {a.bands}: ours {t_ours:.2f} s, surfalize {t_peer:.2f} s, "
+        f"speed-up {t_peer / t_ours:.1f}x; peak RSS incl. surfalize {rss_mb():.0f} MB"
+    )
     print(f"load average after: {os.getloadavg()}")
 
 

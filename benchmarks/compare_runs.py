@@ -10,6 +10,7 @@ validation speeds); the cost of each method (FE runs, steps, FE wall s); the reg
 model and its score; the diagnosis's top cause. Wall times of the runs themselves come from `time` around
 snakemake and from benchmarks/out/ (see docs/quick.md).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,24 +55,30 @@ def main() -> None:
         if not common:
             continue
         diff = np.array([lc[s].mu_kmh(SPEEDS_KMH) - lr[s].mu_kmh(SPEEDS_KMH) for s in common])
-        per_site = np.sqrt(np.mean(diff ** 2, axis=1))
-        print(f"calibrated law ({method}), {len(common)} sites, mu(v) at 20-70 km/h: RMSE of the difference "
-              f"{np.sqrt(np.mean(diff ** 2)):.4f}, mean difference {diff.mean():+.4f}, worst site "
-              f"{common[int(np.argmax(per_site))]} {per_site.max():.4f}")
+        per_site = np.sqrt(np.mean(diff**2, axis=1))
+        print(
+            f"calibrated law ({method}), {len(common)} sites, mu(v) at 20-70 km/h: RMSE of the difference "
+            f"{np.sqrt(np.mean(diff**2)):.4f}, mean difference {diff.mean():+.4f}, worst site "
+            f"{common[int(np.argmax(per_site))]} {per_site.max():.4f}"
+        )
 
     for name, res in (("cheap", c), ("reference", r)):
         f = res / "calibration" / "fit_statistics.csv"
         if f.exists():
             st = pd.read_csv(f)
             for _, row in st.iterrows():
-                print(f"{name}: {row['method']} {row['kind']}: R2 {row['r2']:.3f}, RMSE {row['rmse']:.4f} (n {row['n']})")
+                print(
+                    f"{name}: {row['method']} {row['kind']}: R2 {row['r2']:.3f}, RMSE {row['rmse']:.4f} (n {row['n']})"
+                )
         f = res / "calibration" / "comparison.csv"
         if f.exists():
             tot = pd.read_csv(f).set_index("site").loc["TOTAL"]
             for m in ("study", "ours"):
                 if f"{m}_steps" in tot:
-                    print(f"{name}: {m} cost: {int(tot[f'{m}_fe_runs'])} FE runs, {int(tot[f'{m}_steps']):,} steps, "
-                          f"FE wall {tot[f'{m}_wall_s']:.0f} s")
+                    print(
+                        f"{name}: {m} cost: {int(tot[f'{m}_fe_runs'])} FE runs, {int(tot[f'{m}_steps']):,} steps, "
+                        f"FE wall {tot[f'{m}_wall_s']:.0f} s"
+                    )
             if "steps_ratio" in tot:
                 print(f"{name}: steps ratio ours/study {tot['steps_ratio']:.3f}")
         f = res / "regression" / "cv_ranking.csv"
@@ -84,8 +91,10 @@ def main() -> None:
             top = causes[0] if causes else None
             named = [x["variable"] for x in causes if x.get("significant")]
             if top:
-                print(f"{name}: diagnosis top {top['variable']} ({top['level']}), p_adj {top['p_adjusted']:.3g}; "
-                      f"named: {named[:5]}")
+                print(
+                    f"{name}: diagnosis top {top['variable']} ({top['level']}), p_adj {top['p_adjusted']:.3g}; "
+                    f"named: {named[:5]}"
+                )
 
 
 if __name__ == "__main__":

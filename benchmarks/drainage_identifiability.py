@@ -33,7 +33,7 @@ def residuals(form: str, size: float, mpd_mm: float) -> tuple[np.ndarray, float]
     r_all = T.mu_true(v_all, tr) - np.array([law.mu_kmh(v) for v in v_all])
     v_ho = np.array([30.0, 50.0, 70.0])
     r_ho = T.mu_true(v_ho, tr) - np.array([law.mu_kmh(v) for v in v_ho])
-    return r_ho, float(np.sqrt(np.mean(r_all ** 2)))
+    return r_ho, float(np.sqrt(np.mean(r_all**2)))
 
 
 def main() -> None:

@@ -38,36 +38,59 @@ from skidsim.surface import Surface  # noqa: E402
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--generator", choices=["chips", "spectral"], default="chips")
-    ap.add_argument("--site-index", type=int, default=None,
-                    help="row of the campaign design (default: the site with the largest MPD of the first --sites)")
+    ap.add_argument(
+        "--site-index",
+        type=int,
+        default=None,
+        help="row of the campaign design (default: the site with the largest MPD of the first --sites)",
+    )
     ap.add_argument("--sites", type=int, default=12, help="sites of the design to choose from")
     ap.add_argument("--shape", type=int, nargs=2, default=[300, 600], help="scan rows, cols")
     ap.add_argument("--spacing-mm", type=float, default=0.2)
     ap.add_argument("--speeds", type=float, nargs="+", default=[60.0], help="km/h")
-    ap.add_argument("--law", type=float, nargs=3, default=[0.85, 0.0, 0.05], metavar=("MU_S", "MU_K", "ALPHA"),
-                    help="base law (default: the independent campaigns' typical calibration, mu_s at its bound)")
+    ap.add_argument(
+        "--law",
+        type=float,
+        nargs=3,
+        default=[0.85, 0.0, 0.05],
+        metavar=("MU_S", "MU_K", "ALPHA"),
+        help="base law (default: the independent campaigns' typical calibration, mu_s at its bound)",
+    )
     ap.add_argument("--dmu", type=float, default=0.01, help="step of mu_s and mu_k")
     ap.add_argument("--dalpha", type=float, default=0.005, help="step of alpha, s/m")
     ap.add_argument("--element-mm", type=float, default=None, help="slider element size (default: campaign preset)")
     ap.add_argument("--csv", type=Path, default=None)
     args = ap.parse_args(argv)
 
-    cfg = generator_config(args.generator, {"n_sites": args.sites, "shape": list(args.shape),
-                                            "spacing_mm": args.spacing_mm})
+    cfg = generator_config(
+        args.generator, {"n_sites": args.sites, "shape": list(args.shape), "spacing_mm": args.spacing_mm}
+    )
     design = design_campaign(cfg)
-    sites = [generate_site(row, cfg) for _, row in design.iterrows()] if args.site_index is None else \
-        [generate_site(design.iloc[args.site_index], cfg)]
+    sites = (
+        [generate_site(row, cfg) for _, row in design.iterrows()]
+        if args.site_index is None
+        else [generate_site(design.iloc[args.site_index], cfg)]
+    )
     site = max(sites, key=lambda s: s.truth["texture_measures"]["mpd_mm"])
     mesh = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["mesh"]
     surf = Surface(site.clean, args.spacing_mm, args.spacing_mm, name=site.truth["site"])
-    hf = pavement_strip(surf, length_mm=mesh["length_mm"], width_mm=mesh["width_mm"], x0_mm=mesh["x0_mm"],
-                        y0_mm=mesh["y0_mm"], resolution_mm=mesh["resolution_mm"], smoothing=mesh["smoothing"],
-                        base_depth_mm=mesh["base_depth_mm"])
+    hf = pavement_strip(
+        surf,
+        length_mm=mesh["length_mm"],
+        width_mm=mesh["width_mm"],
+        x0_mm=mesh["x0_mm"],
+        y0_mm=mesh["y0_mm"],
+        resolution_mm=mesh["resolution_mm"],
+        smoothing=mesh["smoothing"],
+        base_depth_mm=mesh["base_depth_mm"],
+    )
     over = {} if args.element_mm is None else {"element_mm": args.element_mm}
     scfg = SolverConfig.campaign(**over)
     tm = site.truth["texture_measures"]
-    print(f"site {site.truth['site']} ({args.generator}): MPD {tm['mpd_mm']:.2f} mm, "
-          f"micro Sq {tm['micro_sq_mm']:.4f} mm; solver element {scfg.element_mm} mm, slide {scfg.slide_length_mm} mm")
+    print(
+        f"site {site.truth['site']} ({args.generator}): MPD {tm['mpd_mm']:.2f} mm, "
+        f"micro Sq {tm['micro_sq_mm']:.4f} mm; solver element {scfg.element_mm} mm, slide {scfg.slide_length_mm} mm"
+    )
     base = ExponentialDecay(*args.law)
     laws = [("base", base), ("base (repeat)", base)]
     for p, d in (("mu_s", args.dmu), ("mu_k", args.dmu), ("alpha", args.dalpha)):
@@ -89,21 +112,41 @@ def main(argv=None) -> int:
                 sn0 = sn
             dmu = float(law.mu_kmh(v) - base.mu_kmh(v))
             dsn = sn - sn0
-            rows.append({"site": site.truth["site"], "speed_kmh": v, "run": name, "mu_s": law.mu_s, "mu_k": law.mu_k,
-                         "alpha_s_per_m": law.alpha, "mu_at_v": float(law.mu_kmh(v)), "sn": sn, "d_sn": dsn,
-                         "d_mu_at_v": dmu, "ratio_dsn_dmu": dsn / dmu if abs(dmu) > 1e-12 else np.nan,
-                         "n_steps": int(r.n_steps), "wall_s": wall})
-            print(f"{v:5.1f} km/h  {name:16s} SN {sn:.4f}  dSN {dsn:+.4f}  d mu(v) {dmu:+.4f}  "
-                  f"ratio {rows[-1]['ratio_dsn_dmu']:+.2f}  ({int(r.n_steps)} steps, {wall:.1f} s)", flush=True)
+            rows.append(
+                {
+                    "site": site.truth["site"],
+                    "speed_kmh": v,
+                    "run": name,
+                    "mu_s": law.mu_s,
+                    "mu_k": law.mu_k,
+                    "alpha_s_per_m": law.alpha,
+                    "mu_at_v": float(law.mu_kmh(v)),
+                    "sn": sn,
+                    "d_sn": dsn,
+                    "d_mu_at_v": dmu,
+                    "ratio_dsn_dmu": dsn / dmu if abs(dmu) > 1e-12 else np.nan,
+                    "n_steps": int(r.n_steps),
+                    "wall_s": wall,
+                }
+            )
+            print(
+                f"{v:5.1f} km/h  {name:16s} SN {sn:.4f}  dSN {dsn:+.4f}  d mu(v) {dmu:+.4f}  "
+                f"ratio {rows[-1]['ratio_dsn_dmu']:+.2f}  ({int(r.n_steps)} steps, {wall:.1f} s)",
+                flush=True,
+            )
     df = pd.DataFrame(rows)
     if args.csv:
         df.to_csv(args.csv, index=False)
     g = df[~df["run"].str.startswith("base")]
     b = df[df["run"] == "base"]
-    print("SN / mu of the base law: " + ", ".join(f"{s:.3f} at {v:g} km/h"
-                                                   for v, s in zip(b["speed_kmh"], b["sn"] / b["mu_at_v"])))
-    print(f"ratio dSN / d mu(v) over the perturbed runs: median {g.ratio_dsn_dmu.median():.2f}, "
-          f"min {g.ratio_dsn_dmu.min():.2f}, max {g.ratio_dsn_dmu.max():.2f}")
+    print(
+        "SN / mu of the base law: "
+        + ", ".join(f"{s:.3f} at {v:g} km/h" for v, s in zip(b["speed_kmh"], b["sn"] / b["mu_at_v"]))
+    )
+    print(
+        f"ratio dSN / d mu(v) over the perturbed runs: median {g.ratio_dsn_dmu.median():.2f}, "
+        f"min {g.ratio_dsn_dmu.min():.2f}, max {g.ratio_dsn_dmu.max():.2f}"
+    )
     return 0
 
 

@@ -7,7 +7,7 @@ Usage::
 
 The friction law is the site's calibrated law (``params`` of a ``calibration_*.json``); the solver is the
 workflow's preset (``campaign`` by default) once elastic and once with the Prony series added (default:
-:data:`skidsim.fe_extension.DEFAULT_PRONY`, docs/model-criticism.md "FE extension: viscoelastic slider").
+:data:`skidsim.criticism.fe_extension.DEFAULT_PRONY`, docs/model-criticism.md "FE extension: viscoelastic slider").
 Prints one row per speed: SN elastic, SN viscoelastic, their difference (absolute and %), the viscous
 dissipation's share of the friction work, and the wall time of each run (s, one core), then the speed slope of SN
 (least squares, per 10 km/h) for both and the wall-time ratio. Writes the table as CSV with ``--csv``.
@@ -23,11 +23,11 @@ import time
 import numpy as np
 import pandas as pd
 
-from skidsim.fe_extension import DEFAULT_PRONY
+from skidsim.config import solver_config
+from skidsim.criticism.fe_extension import DEFAULT_PRONY
 from skidsim.friction import ExponentialDecay
 from skidsim.reconstruct import Heightfield
 from skidsim.solver import simulate
-from skidsim.workflow_support import solver_config
 
 
 def main(argv=None) -> int:
@@ -47,8 +47,10 @@ def main(argv=None) -> int:
     law = ExponentialDecay(p["mu_s"], p["mu_k"], p["alpha"])
     elastic = solver_config({"preset": a.preset})
     visco = elastic.replace(prony_g=tuple(a.prony_g), prony_tau_s=tuple(a.prony_tau_s))
-    print(f"pavement {a.pavement}; law mu_s {law.mu_s:.4f}, mu_k {law.mu_k:.4f}, alpha {law.alpha:.4f} s/m; "
-          f"preset {a.preset} (element {elastic.element_mm} mm, slide {elastic.slide_length_mm} mm)")
+    print(
+        f"pavement {a.pavement}; law mu_s {law.mu_s:.4f}, mu_k {law.mu_k:.4f}, alpha {law.alpha:.4f} s/m; "
+        f"preset {a.preset} (element {elastic.element_mm} mm, slide {elastic.slide_length_mm} mm)"
+    )
     print(f"Prony g {tuple(a.prony_g)}, tau {tuple(a.prony_tau_s)} s", flush=True)
     rows = []
     for v in a.speeds:
@@ -67,20 +69,27 @@ def main(argv=None) -> int:
         row["d_sn"] = row["sn_visco"] - row["sn_elastic"]
         row["d_sn_pct"] = 100 * row["d_sn"] / row["sn_elastic"]
         rows.append(row)
-        print(f"{v:5.0f} km/h  SN elastic {row['sn_elastic']:.4f}  visco {row['sn_visco']:.4f}  "
-              f"d {row['d_sn']:+.4f} ({row['d_sn_pct']:+.2f} %)  viscous/friction {row['viscous_over_friction']:.3f}"
-              f"  wall {row['wall_s_elastic']:.1f} / {row['wall_s_visco']:.1f} s", flush=True)
+        print(
+            f"{v:5.0f} km/h  SN elastic {row['sn_elastic']:.4f}  visco {row['sn_visco']:.4f}  "
+            f"d {row['d_sn']:+.4f} ({row['d_sn_pct']:+.2f} %)  viscous/friction {row['viscous_over_friction']:.3f}"
+            f"  wall {row['wall_s_elastic']:.1f} / {row['wall_s_visco']:.1f} s",
+            flush=True,
+        )
     df = pd.DataFrame(rows)
     print()
     print(df.to_string(index=False, float_format=lambda x: f"{x:.4f}"))
     sl_e = np.polyfit(df["speed_kmh"], df["sn_elastic"], 1)[0] * 10
     sl_v = np.polyfit(df["speed_kmh"], df["sn_visco"], 1)[0] * 10
-    print(f"\nSN slope (least squares): elastic {sl_e:+.5f}, viscoelastic {sl_v:+.5f} per 10 km/h "
-          f"(change {sl_v - sl_e:+.5f}); mean |d SN| {df['d_sn'].abs().mean():.4f}; "
-          f"range of d SN over speeds {df['d_sn'].max() - df['d_sn'].min():.4f}")
-    print(f"wall time: elastic {df['wall_s_elastic'].sum():.1f} s, viscoelastic {df['wall_s_visco'].sum():.1f} s, "
-          f"ratio {df['wall_s_visco'].sum() / df['wall_s_elastic'].sum():.2f}; steps ratio "
-          f"{df['steps_visco'].sum() / df['steps_elastic'].sum():.2f}")
+    print(
+        f"\nSN slope (least squares): elastic {sl_e:+.5f}, viscoelastic {sl_v:+.5f} per 10 km/h "
+        f"(change {sl_v - sl_e:+.5f}); mean |d SN| {df['d_sn'].abs().mean():.4f}; "
+        f"range of d SN over speeds {df['d_sn'].max() - df['d_sn'].min():.4f}"
+    )
+    print(
+        f"wall time: elastic {df['wall_s_elastic'].sum():.1f} s, viscoelastic {df['wall_s_visco'].sum():.1f} s, "
+        f"ratio {df['wall_s_visco'].sum() / df['wall_s_elastic'].sum():.2f}; steps ratio "
+        f"{df['steps_visco'].sum() / df['steps_elastic'].sum():.2f}"
+    )
     if a.csv:
         df.to_csv(a.csv, index=False)
     return 0

@@ -39,17 +39,36 @@ def _wlf(t_c, tr_c=WLF_TR_C, c1=8.86, c2=101.6):
     return -c1 * dt / (c2 + dt)
 
 
-def make_campaign(seed: int, effect: str | None = None, *, n_sections: int = 12, sites_per_section: int = 3,
-                  noise_mu: float = 0.005, trace_step_kmh: float = 4.0):
+def make_campaign(
+    seed: int,
+    effect: str | None = None,
+    *,
+    n_sections: int = 12,
+    sites_per_section: int = 3,
+    noise_mu: float = 0.005,
+    trace_step_kmh: float = 4.0,
+):
     """Return (tables, truth). tables: sites, measured, simulated, predicted, texture (what the analysis sees)."""
-    sites, measured, tex, truth = generate_campaign(seed, effect, n_sections=n_sections,
-                                                    sites_per_section=sites_per_section, noise_mu=noise_mu,
-                                                    trace_step_kmh=trace_step_kmh)
+    sites, measured, tex, truth = generate_campaign(
+        seed,
+        effect,
+        n_sections=n_sections,
+        sites_per_section=sites_per_section,
+        noise_mu=noise_mu,
+        trace_step_kmh=trace_step_kmh,
+    )
     return derive_tables(sites, measured, tex), truth
 
 
-def generate_campaign(seed: int, effect: str | None = None, *, n_sections: int = 12, sites_per_section: int = 3,
-                      noise_mu: float = 0.005, trace_step_kmh: float = 4.0):
+def generate_campaign(
+    seed: int,
+    effect: str | None = None,
+    *,
+    n_sections: int = 12,
+    sites_per_section: int = 3,
+    noise_mu: float = 0.005,
+    trace_step_kmh: float = 4.0,
+):
     """Return (sites, measured, texture, truth): the campaign's raw data (measured: site, speed_kmh, mu, kind)."""
     if effect not in EFFECTS:
         raise ValueError(effect)
@@ -64,25 +83,36 @@ def generate_campaign(seed: int, effect: str | None = None, *, n_sections: int =
     macro = 0.8 * rng.normal(size=n_sections)[sec_idx] + 0.6 * rng.normal(size=n)
     micro = 0.8 * rng.normal(size=n_sections)[sec_idx] + 0.6 * rng.normal(size=n)
     mpd = np.clip(0.8 + 0.22 * macro, 0.25, None)
-    tex = pd.DataFrame({
-        "site": site,
-        "mpd_mm": mpd,
-        "macro_Sq_mm": 0.55 * mpd + 0.02 * rng.normal(size=n),
-        "macro_Sa_mm": 0.42 * mpd + 0.02 * rng.normal(size=n),
-        "macro_Sdr_pct": 8.0 + 3.0 * macro + 0.4 * rng.normal(size=n),
-        "macro_Ssk": -0.5 + 0.3 * rng.normal(size=n),
-        "macro_Sku": 3.2 + 0.4 * rng.normal(size=n),
-        "macro_Str": 0.6 + 0.1 * rng.normal(size=n),
-        "micro_Sq_mm": 0.030 + 0.005 * micro + 0.0008 * rng.normal(size=n),
-        "micro_Sdq": 0.40 + 0.06 * micro + 0.01 * rng.normal(size=n),
-        "micro_Ssk": -0.2 + 0.3 * rng.normal(size=n),
-        "micro_Str": 0.7 + 0.1 * rng.normal(size=n),
-    })
+    tex = pd.DataFrame(
+        {
+            "site": site,
+            "mpd_mm": mpd,
+            "macro_Sq_mm": 0.55 * mpd + 0.02 * rng.normal(size=n),
+            "macro_Sa_mm": 0.42 * mpd + 0.02 * rng.normal(size=n),
+            "macro_Sdr_pct": 8.0 + 3.0 * macro + 0.4 * rng.normal(size=n),
+            "macro_Ssk": -0.5 + 0.3 * rng.normal(size=n),
+            "macro_Sku": 3.2 + 0.4 * rng.normal(size=n),
+            "macro_Str": 0.6 + 0.1 * rng.normal(size=n),
+            "micro_Sq_mm": 0.030 + 0.005 * micro + 0.0008 * rng.normal(size=n),
+            "micro_Sdq": 0.40 + 0.06 * micro + 0.01 * rng.normal(size=n),
+            "micro_Ssk": -0.2 + 0.3 * rng.normal(size=n),
+            "micro_Str": 0.7 + 0.1 * rng.normal(size=n),
+        }
+    )
     temperature = rng.uniform(9.0, 23.0, size=n)
     order = rng.permutation(n) + 1
-    sites = pd.DataFrame({"site": site, "section": section, "temperature_c": np.round(temperature, 2),
-                          "mix": mix, "test_order": order, "operator": rng.choice(["JD", "KL"], size=n),
-                          "scan": [f"scans/{s}.x3p" for s in site], "dft": [f"dft/{s}.csv" for s in site]})
+    sites = pd.DataFrame(
+        {
+            "site": site,
+            "section": section,
+            "temperature_c": np.round(temperature, 2),
+            "mix": mix,
+            "test_order": order,
+            "operator": rng.choice(["JD", "KL"], size=n),
+            "scan": [f"scans/{s}.x3p" for s in site],
+            "dft": [f"dft/{s}.csv" for s in site],
+        }
+    )
     rng.normal(size=n)  # (was the FE geometric factor g, which cancels in SN_sim = g mu_cal; keeps the stream)
     mu_k = 0.30 + 0.04 * micro + 0.012 * rng.normal(size=n)
     mu_s = mu_k + 0.30 + 0.04 * micro + 0.015 * rng.normal(size=n)
@@ -109,16 +139,28 @@ def generate_campaign(seed: int, effect: str | None = None, *, n_sections: int =
     rows = []
     trace_v = np.arange(20.0, 80.0 + 1e-9, trace_step_kmh) if trace_step_kmh else np.array([])
     for i in range(n):
-        for kind, vs, sd in (("calibration", SPEEDS_CAL_KMH, noise_mu), ("validation", SPEEDS_VAL_KMH, noise_mu),
-                             ("trace", trace_v, 1.5 * noise_mu)):
+        for kind, vs, sd in (
+            ("calibration", SPEEDS_CAL_KMH, noise_mu),
+            ("validation", SPEEDS_VAL_KMH, noise_mu),
+            ("trace", trace_v, 1.5 * noise_mu),
+        ):
             vs = np.asarray(vs, float)
             if len(vs) == 0:
                 continue
             y = truth_mu(i, vs) + sd * rng.normal(size=len(vs))
             rows += [(site[i], float(v), float(m), kind) for v, m in zip(vs, y)]
     measured = pd.DataFrame(rows, columns=["site", "speed_kmh", "mu", "kind"])
-    truth = {"effect": effect, "variable": {None: None, "temperature": "temperature_c", "drainage": "mpd_mm",
-                                            "squeeze": "mpd_mm", "wear": "test_order", "mix": "mix"}[effect]}
+    truth = {
+        "effect": effect,
+        "variable": {
+            None: None,
+            "temperature": "temperature_c",
+            "drainage": "mpd_mm",
+            "squeeze": "mpd_mm",
+            "wear": "test_order",
+            "mix": "mix",
+        }[effect],
+    }
     return sites, measured, tex, truth
 
 
@@ -140,12 +182,24 @@ def derive_tables(sites: pd.DataFrame, measured: pd.DataFrame, tex: pd.DataFrame
         v, y = m["speed_kmh"].to_numpy(), m["mu"].to_numpy()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            p, _ = curve_fit(lambda vv, a, b, c: b + a * np.exp(-c * vv / 3.6), v, y,
-                             p0=(0.3, 0.3, 0.1), bounds=([-2, -2, 1e-4], [2, 2, 3.0]), maxfev=20000)
+            p, _ = curve_fit(
+                lambda vv, a, b, c: b + a * np.exp(-c * vv / 3.6),
+                v,
+                y,
+                p0=(0.3, 0.3, 0.1),
+                bounds=([-2, -2, 1e-4], [2, 2, 3.0]),
+                maxfev=20000,
+            )
         cal[i] = (p[1] + p[0], p[1], p[2])  # (g mu_s, g mu_k, alpha)
     cal_mu_s, cal_mu_k, cal_alpha = cal[:, 0] / g, cal[:, 1] / g, cal[:, 2]
-    simulated = pd.DataFrame([(site[i], v, float(g[i] * _law(v, cal_mu_s[i], cal_mu_k[i], cal_alpha[i])))
-                              for i in range(n) for v in SIM_SPEEDS_KMH], columns=["site", "speed_kmh", "sn"])
+    simulated = pd.DataFrame(
+        [
+            (site[i], v, float(g[i] * _law(v, cal_mu_s[i], cal_mu_k[i], cal_alpha[i])))
+            for i in range(n)
+            for v in SIM_SPEEDS_KMH
+        ],
+        columns=["site", "speed_kmh", "sn"],
+    )
     # texture model (what a regression on texture would predict for held-out sites, as in the study: principal
     # component regression): leave-one-section-out least squares of each site's level (mean calibrated SN over the
     # simulated speeds) on the first N_PCS principal components of the standardised texture parameters, times the
@@ -164,8 +218,10 @@ def derive_tables(sites: pd.DataFrame, measured: pd.DataFrame, tex: pd.DataFrame
         beta = np.linalg.lstsq(A, level[tr], rcond=None)[0]
         shape = (Y[tr] / level[tr, None]).mean(axis=0)
         pred[te] = (np.c_[np.ones(te.sum()), Z[te]] @ beta)[:, None] * shape[None, :]
-    predicted = pd.DataFrame([(site[i], float(v), float(pred[i, j])) for i in range(n)
-                              for j, v in enumerate(SIM_SPEEDS_KMH)], columns=["site", "speed_kmh", "sn_pred"])
+    predicted = pd.DataFrame(
+        [(site[i], float(v), float(pred[i, j])) for i in range(n) for j, v in enumerate(SIM_SPEEDS_KMH)],
+        columns=["site", "speed_kmh", "sn_pred"],
+    )
     return {"sites": sites, "measured": measured, "simulated": simulated, "predicted": predicted, "texture": tex}
 
 

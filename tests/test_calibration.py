@@ -7,17 +7,35 @@ Surrogates: SN = g(v, mu) * mu(v) with known parameters; step counts of the real
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from skidsim.calibration import (CalibrationError, CalibrationResult, FECache, FEOutcome, aitken_three_point,
-                                 calibrate_fast, calibrate_study, comparison_table, figure10_statistics,
-                                 fit_exponential_decay, fit_statistics, measured_at, prior_reference_sites,
-                                 simulate_speeds, surrogate_prior, table2,
-                                 validation_table)
-from skidsim.errors import InputError
+from skidsim.calibration import (
+    CalibrationError,
+    CalibrationResult,
+    FECache,
+    FEOutcome,
+    IdentifiabilityOptions,
+    JointOptions,
+    StudyOptions,
+    aitken_three_point,
+    calibrate_fast,
+    calibrate_study,
+    comparison_table,
+    figure10_statistics,
+    fit_exponential_decay,
+    fit_statistics,
+    measured_at,
+    prior_reference_sites,
+    simulate_speeds,
+    surrogate_prior,
+    table2,
+    validation_table,
+)
+from skidsim.errors import ConfigError, InputError
 from skidsim.friction import ExponentialDecay
 
 TRUTH = ExponentialDecay(mu_s=0.62, mu_k=0.38, alpha=0.12)
@@ -52,13 +70,17 @@ class Surrogate:
         return FEOutcome(sn=sn, n_steps=n, wall_s=n * 1e-6)
 
 
-def trace(law, g=lambda v, mu: 1.0, speeds=np.arange(5.0, 85.0, 1.0), noise_sd=0.0, seed=1):
+TRACE_SPEEDS_KMH = np.arange(5.0, 85.0, 1.0)
+
+
+def trace(law, g=lambda v, mu: 1.0, speeds=TRACE_SPEEDS_KMH, noise_sd=0.0, seed=1):
     mu = np.array([g(v, float(law.mu_kmh(v))) * float(law.mu_kmh(v)) for v in speeds])
     mu = mu + np.random.default_rng(seed).normal(0.0, noise_sd, mu.size) if noise_sd else mu
     return pd.DataFrame({"speed_kmh": speeds, "mu": mu})
 
 
 # ------------------------------------------------------------------------------------------ study method
+
 
 def test_study_bisection_hand_traced_sequence():
     # start alpha 0.1 s/m; SN = mu(v) (g = 1). Weights exp(-0.1 s): 60 km/h 0.18888, 20 km/h 0.57375, 40 km/h 0.32919.
@@ -69,7 +91,7 @@ def test_study_bisection_hand_traced_sequence():
     # alpha @40 (mu_s 0.74375 > mu_k: decreasing): SN = 0.2625 + 0.48125 exp(-11.111 alpha), target 0.30:
     #   0.5 -> 0.2644 (-11.9 %, too low -> smaller alpha: hi=0.5); 0.25 -> 0.2924 (-2.5 %) stop.
     sim = Surrogate(g=lambda v, mu: 1.0)
-    res = calibrate_study(sim, {20: 0.55, 40: 0.30, 60: 0.30}, start=(0.4, 0.35, 0.1))
+    res = calibrate_study(sim, {20: 0.55, 40: 0.30, 60: 0.30}, StudyOptions(start=(0.4, 0.35, 0.1)))
     h = res.history
     assert list(h["stage"]) == ["mu_k"] * 3 + ["mu_s"] * 3 + ["alpha"] * 2
     assert list(h["speed_kmh"]) == [60.0] * 3 + [20.0] * 3 + [40.0] * 2
@@ -80,22 +102,25 @@ def test_study_bisection_hand_traced_sequence():
     assert res.converged
     assert (res.params.mu_s, res.params.mu_k, res.params.alpha) == pytest.approx((0.74375, 0.2625, 0.25))
     # it stopped at the first evaluation inside 10 % in every search, never before
-    for stage, g in h.groupby("stage"):
+    for _stage, g in h.groupby("stage"):
         assert (g["rel_err"].abs().iloc[:-1] >= 0.10).all() and abs(g["rel_err"].iloc[-1]) < 0.10
     assert res.n_fe_runs == 8 == len(sim.calls)
 
 
-@pytest.mark.parametrize("mu_s, mu_k, target, decisions", [
-    # decreasing in alpha (mu_s > mu_k): SN = 0.3 + 0.4 exp(-11.111 alpha), target 0.35, tol 0.1 %:
-    # 0.5 -> 0.3015 (low: hi), 0.25 -> 0.3249 (low: hi), 0.125 -> 0.3997 (high: lo), 0.1875 -> 0.3498 stop
-    (0.7, 0.3, 0.35, None),
-    # increasing in alpha (mu_s < mu_k): SN = 0.7 - 0.4 exp(-11.111 alpha), target 0.65:
-    # 0.5 -> 0.6985 (high: hi), 0.25 -> 0.6751 (high: hi), 0.125 -> 0.6003 (low: lo), 0.1875 -> 0.6502 stop
-    (0.3, 0.7, 0.65, None),
-])
+@pytest.mark.parametrize(
+    "mu_s, mu_k, target, decisions",
+    [
+        # decreasing in alpha (mu_s > mu_k): SN = 0.3 + 0.4 exp(-11.111 alpha), target 0.35, tol 0.1 %:
+        # 0.5 -> 0.3015 (low: hi), 0.25 -> 0.3249 (low: hi), 0.125 -> 0.3997 (high: lo), 0.1875 -> 0.3498 stop
+        (0.7, 0.3, 0.35, None),
+        # increasing in alpha (mu_s < mu_k): SN = 0.7 - 0.4 exp(-11.111 alpha), target 0.65:
+        # 0.5 -> 0.6985 (high: hi), 0.25 -> 0.6751 (high: hi), 0.125 -> 0.6003 (low: lo), 0.1875 -> 0.6502 stop
+        (0.3, 0.7, 0.65, None),
+    ],
+)
 def test_study_alpha_direction_follows_sign_of_mus_minus_muk(mu_s, mu_k, target, decisions):
     sim = Surrogate(g=lambda v, mu: 1.0)
-    res = calibrate_study(sim, {40: target}, start=(mu_s, mu_k, 0.6), order=[("alpha", 40.0)], tol=0.001)
+    res = calibrate_study(sim, {40: target}, StudyOptions(start=(mu_s, mu_k, 0.6), tol=0.001), order=[("alpha", 40.0)])
     assert list(res.history["alpha"]) == pytest.approx([0.5, 0.25, 0.125, 0.1875], abs=1e-12)
     assert res.converged and abs(res.history["rel_err"].iloc[-1]) < 0.001
 
@@ -104,7 +129,7 @@ def test_study_max_iter_flags_and_raises():
     # with the study's start alpha 0.6 s/m, mu_s weighs exp(-3.33) = 3.6 % at 20 km/h: DFT20 = 0.6 is out of reach
     meas = {20: 0.60, 40: 0.50, 60: 0.42}
     sim = Surrogate(g=lambda v, mu: 1.0)
-    res = calibrate_study(sim, meas, max_iter=7)
+    res = calibrate_study(sim, meas, StudyOptions(max_iter=7))
     assert not res.converged
     assert (res.history["stage"] == "mu_s").sum() == 7
     assert "mu_s at 20 km/h" in res.message and "max_iter=7" in res.message
@@ -113,7 +138,7 @@ def test_study_max_iter_flags_and_raises():
     assert res.params.mu_s == pytest.approx(mus.max()) and mus.max() < 0.85
     assert res.history.loc[res.history["stage"] == "alpha", "mu_s"].iloc[0] == pytest.approx(mus.max())
     with pytest.raises(CalibrationError, match=r"mu_s at 20 km/h.*max_iter=7"):
-        calibrate_study(Surrogate(g=lambda v, mu: 1.0), meas, max_iter=7, on_max_iter="raise")
+        calibrate_study(Surrogate(g=lambda v, mu: 1.0), meas, StudyOptions(max_iter=7, on_max_iter="raise"))
 
 
 def test_study_rejects_missing_measured_speed():
@@ -123,33 +148,42 @@ def test_study_rejects_missing_measured_speed():
 
 # ------------------------------------------------------------------------------------------ fast method
 
+
 @pytest.mark.parametrize("curve", ["trace", "dict"])
-@pytest.mark.parametrize("g, model, pilot, runs, batches", [
-    # constant g: the pilot at 60 km/h finds it, the first full batch verifies exactly (both models)
-    (lambda v, mu: 1.07, "ratio", "fastest", 4, 1),
-    (lambda v, mu: 1.07, "slip", "fastest", 4, 1),
-    # g weakly, linearly speed dependent: the pilot's level is off at 20 km/h by 0.04 mu, one more batch
-    (lambda v, mu: 1.07 - 0.001 * (v - 40.0), "ratio", "fastest", 7, 2),
-    # no pilot: a batch at the g = 1 fit, then the verifying batch
-    (lambda v, mu: 1.07 - 0.001 * (v - 40.0), "ratio", None, 6, 2),
-])
+@pytest.mark.parametrize(
+    "g, model, pilot, runs, batches",
+    [
+        # constant g: the pilot at 60 km/h finds it, the first full batch verifies exactly (both models)
+        (lambda v, mu: 1.07, "ratio", "fastest", 4, 1),
+        (lambda v, mu: 1.07, "slip", "fastest", 4, 1),
+        # g weakly, linearly speed dependent: the pilot's level is off at 20 km/h by 0.04 mu, one more batch
+        (lambda v, mu: 1.07 - 0.001 * (v - 40.0), "ratio", "fastest", 7, 2),
+        # no pilot: a batch at the g = 1 fit, then the verifying batch
+        (lambda v, mu: 1.07 - 0.001 * (v - 40.0), "ratio", None, 6, 2),
+    ],
+)
 def test_fast_recovers_exact_parameters(curve, g, model, pilot, runs, batches):
     sim = Surrogate(g=g)
     meas = trace(TRUTH, g) if curve == "trace" else {v: g(v, 0) * float(TRUTH.mu_kmh(v)) for v in (20, 40, 60)}
-    res = calibrate_fast(sim, meas, tol=1e-6, pilot_speed_kmh=pilot, model=model)
+    res = calibrate_fast(sim, meas, JointOptions(tol=1e-6, pilot_speed_kmh=pilot, model=model))
     p = res.params
     assert (p.mu_s, p.mu_k, p.alpha) == pytest.approx((TRUTH.mu_s, TRUTH.mu_k, TRUTH.alpha), abs=1e-3)
     assert res.converged
     assert res.n_fe_runs == runs == len(sim.calls)
-    assert res.n_steps == sim.steps == (runs - 3 * batches) * steps_for(60) + batches * sum(
-        steps_for(v) for v in (20, 40, 60))
+    assert (
+        res.n_steps
+        == sim.steps
+        == (runs - 3 * batches) * steps_for(60) + batches * sum(steps_for(v) for v in (20, 40, 60))
+    )
 
 
 def test_fast_converges_with_mu_dependent_g_and_noise():
-    g = lambda v, mu: (1.04 + 0.0015 * (v - 40.0)) * (1.0 + 0.4 * (mu - 0.45))
+    def g(v, mu):
+        return (1.04 + 0.0015 * (v - 40.0)) * (1.0 + 0.4 * (mu - 0.45))
+
     meas = trace(TRUTH, g, noise_sd=0.004, seed=3)
     sim = Surrogate(g=g, noise_sd=0.002, seed=5)
-    res = calibrate_fast(sim, meas, tol=0.01)
+    res = calibrate_fast(sim, meas, JointOptions(tol=0.01))
     assert res.converged, res.message
     last = res.history[res.history["iteration"] == res.history["iteration"].max()]
     assert (np.abs(last["sn_sim"] - last["sn_pred"]) <= 0.01).all()
@@ -160,8 +194,10 @@ def test_fast_converges_with_mu_dependent_g_and_noise():
 
 
 def test_fast_budget_exhausted_is_flagged():
-    g = lambda v, mu: 1.0 + 3.0 * (mu - 0.45) ** 2 + 0.2 * np.sin(40 * mu)  # far from the g * mu model
-    res = calibrate_fast(Surrogate(g=g), trace(TRUTH), tol=1e-9, max_fe_runs=6)
+    def g(v, mu):  # far from the g * mu model
+        return 1.0 + 3.0 * (mu - 0.45) ** 2 + 0.2 * np.sin(40 * mu)
+
+    res = calibrate_fast(Surrogate(g=g), trace(TRUTH), JointOptions(tol=1e-9, max_fe_runs=6))
     assert not res.converged and res.n_fe_runs <= 6
     assert "max_fe_runs=6" in res.message
 
@@ -194,13 +230,19 @@ def test_bounded_fit_on_non_monotone_data_beats_brute_force_grid():
 
 
 def test_fast_uses_at_most_a_third_of_the_study_steps_for_a_better_validation_fit():
-    g = lambda v, mu: 1.05
+    def g(v, mu):
+        return 1.05
+
     meas = trace(TRUTH, g)
     study = calibrate_study(Surrogate(g=g), meas)
     ours = calibrate_fast(Surrogate(g=g), meas)
     assert ours.n_steps <= study.n_steps / 3
-    runs = {"S1": {m: simulate_speeds(Surrogate(g=g), r.params, (20, 30, 40, 50, 60, 70))
-                   for m, r in (("study", study), ("ours", ours))}}
+    runs = {
+        "S1": {
+            m: simulate_speeds(Surrogate(g=g), r.params, (20, 30, 40, 50, 60, 70))
+            for m, r in (("study", study), ("ours", ours))
+        }
+    }
     vt = validation_table(runs, {"S1": meas})
     st = figure10_statistics(vt).set_index(["method", "kind"])
     assert st.loc[("ours", "validation"), "rmse"] <= st.loc[("study", "validation"), "rmse"]
@@ -209,23 +251,26 @@ def test_fast_uses_at_most_a_third_of_the_study_steps_for_a_better_validation_fi
 
 # ------------------------------------------------------------------------------------------ cache
 
+
 def test_cache_second_run_performs_no_new_evaluation(tmp_path):
     path = tmp_path / "cache" / "E1.parquet"
     meas = {20: 0.55, 40: 0.30, 60: 0.30}
     sim1 = Surrogate(g=lambda v, mu: 1.0)
     c1 = FECache(path, site="E1", mesh="0.5mm", solver="v1")
-    r1 = calibrate_study(c1.wrap(sim1), meas, start=(0.4, 0.35, 0.1))
+    r1 = calibrate_study(c1.wrap(sim1), meas, StudyOptions(start=(0.4, 0.35, 0.1)))
     assert c1.n_new == 8 and len(c1) == 8 and path.exists()
     sim2 = Surrogate(g=lambda v, mu: 1.0)
     c2 = FECache(path, site="E1", mesh="0.5mm", solver="v1")
-    r2 = calibrate_study(c2.wrap(sim2), meas, start=(0.4, 0.35, 0.1))
+    r2 = calibrate_study(c2.wrap(sim2), meas, StudyOptions(start=(0.4, 0.35, 0.1)))
     assert sim2.calls == [] and c2.n_hits == 8 and c2.n_new == 0
     assert r2.params == r1.params
     assert r2.history["cached"].all() and r2.n_steps_run == 0 and r2.n_cache_hits == 8
     assert r2.n_steps == r1.n_steps == sim1.steps  # the method's cost survives the cache
     # another mesh key: nothing matches
     sim3 = Surrogate(g=lambda v, mu: 1.0)
-    calibrate_study(FECache(path, site="E1", mesh="0.25mm", solver="v1").wrap(sim3), meas, start=(0.4, 0.35, 0.1))
+    calibrate_study(
+        FECache(path, site="E1", mesh="0.25mm", solver="v1").wrap(sim3), meas, StudyOptions(start=(0.4, 0.35, 0.1))
+    )
     assert len(sim3.calls) == 8
     t = pd.read_parquet(path)
     assert len(t) == 16 and set(t["key_mesh"]) == {"0.5mm", "0.25mm"}
@@ -234,7 +279,10 @@ def test_cache_second_run_performs_no_new_evaluation(tmp_path):
 
 def test_cache_resumes_a_killed_run(tmp_path):
     path = tmp_path / "E2.parquet"
-    g = lambda v, mu: 1.07 - 0.001 * (v - 40.0)  # 7 evaluations: pilot + two batches
+
+    def g(v, mu):  # 7 evaluations: pilot + two batches
+        return 1.07 - 0.001 * (v - 40.0)
+
     meas = trace(TRUTH, g)
     crashing = Surrogate(g=g, fail_after=5)
     with pytest.raises(RuntimeError, match="simulated crash"):
@@ -256,6 +304,7 @@ def test_cache_rejects_a_table_without_required_columns(tmp_path):
 
 # ------------------------------------------------------------------------------------------ tables and stats
 
+
 def test_fit_statistics_hand_values():
     st = fit_statistics([1.0, 2.0, 3.0], [1.0, 2.0, 4.0])
     assert st["n"] == 3
@@ -264,19 +313,26 @@ def test_fit_statistics_hand_values():
     assert st["r2"] == pytest.approx(1 - 9 / 42)  # SST of (1, 2, 4) = 42/9
     assert st["max_rel_err"] == pytest.approx(0.25)
     from scipy.stats import pearsonr
+
     assert st["r2_pearson"] == pytest.approx(pearsonr([1, 2, 3], [1, 2, 4])[0] ** 2)
 
 
 def test_comparison_table_totals_and_table2(tmp_path):
     results, runs, meas = {}, {}, {}
     for i, site in enumerate(["A", "B"]):
-        g = lambda v, mu, i=i: 1.0 + 0.05 * i
+
+        def g(v, mu, i=i):
+            return 1.0 + 0.05 * i
+
         truth = ExponentialDecay(0.6 + 0.05 * i, 0.35, 0.1)
         meas[site] = trace(truth, g)
-        results[site] = {"study": calibrate_study(Surrogate(g=g), meas[site]),
-                         "ours": calibrate_fast(Surrogate(g=g), meas[site])}
-        runs[site] = {m: simulate_speeds(Surrogate(g=g), r.params, (20, 30, 40, 50, 60, 70))
-                      for m, r in results[site].items()}
+        results[site] = {
+            "study": calibrate_study(Surrogate(g=g), meas[site]),
+            "ours": calibrate_fast(Surrogate(g=g), meas[site]),
+        }
+        runs[site] = {
+            m: simulate_speeds(Surrogate(g=g), r.params, (20, 30, 40, 50, 60, 70)) for m, r in results[site].items()
+        }
     vt = validation_table(runs, meas)
     assert set(vt["kind"]) == {"calibration", "validation"} and len(vt) == 2 * 2 * 6
     cmp = comparison_table(results, vt)
@@ -309,6 +365,7 @@ def test_comparison_table_totals_and_table2(tmp_path):
     assert list(back_s.history["stage"]) == list(results["A"]["study"].history["stage"])
     # figures
     from skidsim.plotting.calibration import plot_calibration_curves, plot_figure10
+
     plot_figure10(vt, tmp_path / "fig10.png")
     plot_calibration_curves(results, meas, tmp_path / "curves.png", runs=runs)
     for f in ("fig10.png", "curves.png"):
@@ -331,13 +388,14 @@ def test_measured_at_conventions_and_errors():
 def test_box_least_squares_matches_scipy_lsq_linear():
     from scipy.optimize import lsq_linear
 
-    from skidsim.calibration import _box_ls2_many
+    from skidsim.calibration import box_ls2_many
+
     rng = np.random.default_rng(11)
     lo, hi = np.array([0.0, 0.0]), np.array([0.7, 0.85])
     c1 = rng.uniform(0, 1.2, (40, 9))
     c2 = rng.uniform(0, 1.2, (40, 9))
     z = rng.uniform(-0.2, 1.2, 9)
-    p, sse = _box_ls2_many(c1, c2, z, lo, hi)
+    p, sse = box_ls2_many(c1, c2, z, lo, hi)
     for k in range(40):
         X = np.column_stack([c1[k], c2[k]])
         ref = lsq_linear(X, z, bounds=(lo, hi), tol=1e-14, method="bvls")
@@ -349,9 +407,10 @@ def test_fast_calibration_with_the_real_solver_on_a_flat_plane(tmp_path):
     """Integration: the FE callback around skidsim.solver.simulate; on a flat plane SN = mu (g = 1)."""
     from skidsim.calibration import fe_simulator
     from skidsim.solver import FlatPlane, SolverConfig
+
     cfg = SolverConfig(element_mm=2.0, slide_length_mm=6.0, window_start_mm=2.0, preload_time_s=0.6e-3)
     cache = FECache(tmp_path / "flat.parquet", site="flat", solver="fast-2mm")
-    res = calibrate_fast(cache.wrap(fe_simulator(FlatPlane(), cfg)), trace(TRUTH), tol=0.005)
+    res = calibrate_fast(cache.wrap(fe_simulator(FlatPlane(), cfg)), trace(TRUTH), JointOptions(tol=0.005))
     assert res.converged, res.message
     assert res.n_fe_runs == 4  # pilot + one verifying batch: g = 1 within the tolerance
     assert (res.params.mu_s, res.params.mu_k) == pytest.approx((TRUTH.mu_s, TRUTH.mu_k), abs=0.02)
@@ -382,7 +441,7 @@ def test_fast_slip_model_recovers_law_sampled_at_effective_slip_speed():
     v = np.arange(5.0, 85.0)
     meas = pd.DataFrame({"speed_kmh": v, "mu": 1.13 * TRUTH.mu(SlipSurrogate.slip_ms(v))})
     sim = SlipSurrogate()
-    res = calibrate_fast(sim, meas, model="slip", tol=1e-6)
+    res = calibrate_fast(sim, meas, JointOptions(model="slip", tol=1e-6))
     assert res.converged and res.n_fe_runs == 7  # constant-law pilot + two batches
     assert res.history["stage"].iloc[0] == "pilot" and res.history["alpha"].iloc[0] == 0.0
     p = res.params
@@ -392,7 +451,7 @@ def test_fast_slip_model_recovers_law_sampled_at_effective_slip_speed():
     expected = np.array([SlipSurrogate.slip_ms(s) * 3.6 - s for s in (20.0, 40.0, 60.0)])
     assert d == pytest.approx(expected, abs=1e-3)
     # the ratio model needs more FE runs for the same surrogate
-    ratio = calibrate_fast(SlipSurrogate(), meas, model="ratio", tol=1e-6)
+    ratio = calibrate_fast(SlipSurrogate(), meas, JointOptions(model="ratio", tol=1e-6))
     assert ratio.n_fe_runs > res.n_fe_runs
 
 
@@ -420,7 +479,7 @@ def test_surrogate_prior_from_reference_sites_saves_the_pilot_and_a_batch():
     then converges in one batch of three FE runs (instead of pilot + two batches) and recovers its own law."""
     laws = [ExponentialDecay(0.70, 0.40, 0.10), ExponentialDecay(0.62, 0.38, 0.12), ExponentialDecay(0.55, 0.30, 0.08)]
     sites = [ShiftedSlipSurrogate(G=1.12 + 0.01 * i, extra_ms=0.1 * (i - 1)) for i in range(3)]
-    refs = [calibrate_fast(s, s.curve(law), model="slip", tol=1e-4) for s, law in zip(sites, laws)]
+    refs = [calibrate_fast(s, s.curve(law), JointOptions(model="slip", tol=1e-4)) for s, law in zip(sites, laws)]
     assert all(r.converged and r.n_fe_runs == 7 for r in refs)
     prior = surrogate_prior(refs)
     assert prior["n_sites"] == 3 and prior["speeds_kmh"] == [20.0, 40.0, 60.0]
@@ -430,19 +489,21 @@ def test_surrogate_prior_from_reference_sites_saves_the_pilot_and_a_batch():
     assert prior["slip_offsets_kmh"] == pytest.approx(expected, abs=1e-3)
     site = ShiftedSlipSurrogate(G=1.135, extra_ms=0.05)
     law = ExponentialDecay(0.66, 0.36, 0.11)
-    with_prior = calibrate_fast(site, site.curve(law), model="slip", tol=0.01, prior=prior)
+    with_prior = calibrate_fast(site, site.curve(law), JointOptions(model="slip", tol=0.01), prior=prior)
     assert with_prior.converged and with_prior.n_fe_runs == 3
     assert "pilot" not in set(with_prior.history["stage"])
     assert with_prior.settings["prior"]["b"] == pytest.approx(prior["b"])
     v = np.array([20.0, 40.0, 60.0])
     assert np.max(np.abs(with_prior.params.mu_kmh(v) - law.mu_kmh(v))) < 0.01
     # the same site on its own: pilot + two batches, and a site calibrated with a prior is no reference
-    alone = calibrate_fast(ShiftedSlipSurrogate(G=1.135, extra_ms=0.05), site.curve(law), model="slip", tol=0.01)
+    alone = calibrate_fast(
+        ShiftedSlipSurrogate(G=1.135, extra_ms=0.05), site.curve(law), JointOptions(model="slip", tol=0.01)
+    )
     assert alone.n_fe_runs == 7
     with pytest.raises(ValueError, match="no converged prior-free"):
         surrogate_prior([with_prior])
     with pytest.raises(ValueError, match="only defined for model='slip'"):
-        calibrate_fast(site, site.curve(law), model="ratio", prior=prior)
+        calibrate_fast(site, site.curve(law), JointOptions(model="ratio"), prior=prior)
     with pytest.raises(ValueError, match="same length"):
         calibrate_fast(site, site.curve(law), prior=dict(prior, b=[1.1, 1.1]))
 
@@ -453,3 +514,64 @@ def test_prior_reference_sites_spread_over_the_table():
     assert prior_reference_sites(sites[:2], 3) == ["S0", "S1"]
     assert prior_reference_sites(sites, 0) == []
     assert prior_reference_sites(sites, 1) == ["S0"]
+
+
+# ------------------------------------------------------------------------------------------ options
+
+
+def test_options_defaults_are_the_config_and_unknown_keys_are_refused():
+    from pathlib import Path
+
+    import yaml
+
+    cfg = yaml.safe_load((Path(__file__).parents[1] / "config" / "config.yaml").read_text())["calibration"]
+    # the library defaults are the shipped config: an empty section means the same as config.yaml's
+    assert StudyOptions.from_config(cfg["study"]) == StudyOptions() == StudyOptions.from_config(None)
+    assert JointOptions.from_config(cfg["ours"]) == JointOptions() == JointOptions.from_config({})
+    assert IdentifiabilityOptions.from_config(cfg["identifiability"]) == IdentifiabilityOptions()
+    assert StudyOptions().max_iter == 8 and StudyOptions().tol == 0.10
+    assert StudyOptions().start == (0.4, 0.35, 0.6) and StudyOptions().intervals["mu_k"] == (0.0, 0.7)
+    assert (JointOptions().max_fe_runs, JointOptions().tol, JointOptions().model) == (12, 0.01, "slip")
+    assert JointOptions().prior_sites == 3 and JointOptions().fit_range_kmh is None
+    # the config's start mapping; a partial section keeps the other defaults
+    st = StudyOptions.from_config({"start": {"alpha": 0.1}, "intervals": {"mu_s": [0.1, 0.9]}, "max_iter": 5})
+    assert st.start == (0.4, 0.35, 0.1) and st.intervals["mu_s"] == (0.1, 0.9) and st.intervals["alpha"] == (0.0, 1.0)
+    assert JointOptions.from_config({"fit_range_kmh": [10, 70]}).fit_range_kmh == (10, 70)
+    with pytest.raises(ConfigError, match=r"calibration\.ours: unknown key\(s\) \['max_runs'\]"):
+        JointOptions.from_config({"max_runs": 12})
+    with pytest.raises(ConfigError, match=r"calibration\.study: unknown key\(s\) \['maxiter'\]"):
+        StudyOptions.from_config({"maxiter": 8})
+    with pytest.raises(ConfigError, match=r"calibration\.study\.start: unknown parameter\(s\) \['mu_d'\]"):
+        StudyOptions.from_config({"start": {"mu_d": 0.3}})
+    with pytest.raises(ConfigError, match=r"calibration\.identifiability: unknown key\(s\) \['noise_window'\]"):
+        IdentifiabilityOptions.from_config({"noise_window": 10.0})
+    with pytest.raises(ConfigError, match=r"calibration\.ours\.model: expected 'slip' or 'ratio', got 'linear'"):
+        JointOptions(model="linear")
+    with pytest.raises(ConfigError, match=r"calibration\.study\.intervals\.alpha: expected lo < hi"):
+        StudyOptions(intervals={"alpha": (0.5, 0.5)})
+    with pytest.raises(ConfigError, match=r"calibration\.ours\.tol: expected a positive number, got 0"):
+        JointOptions(tol=0)
+
+
+def test_fe_cache_key_of_the_default_solver_is_stable():
+    """The default campaign solver's cache key is the one the default run's FE caches carry (commit 1d3ab97,
+    key_solver '333e041a6377'); a solver model chosen away from its default, or a parameter of a model in use,
+    changes it, while a parameter of an unused model does not."""
+    import yaml
+
+    from skidsim.calibration.site import solver_cache_key
+    from skidsim.config import config_digest, solver_config
+
+    cfg = yaml.safe_load((Path(__file__).resolve().parents[1] / "config" / "config.yaml").read_text())["solver"]
+
+    def digest(**overrides):
+        return config_digest(solver_cache_key(solver_config({**cfg, "overrides": overrides})))
+
+    assert digest() == "333e041a6377"
+    assert digest(friction_stiffness_pa_per_m=1e11) == digest()  # the stick-limit model does not read it
+    assert digest(loss_factor=0.3) == digest()  # the mass-proportional damping does not read it
+    penalty = digest(friction_model="penalty")
+    assert penalty != digest()
+    assert digest(friction_model="penalty", friction_stiffness_pa_per_m=1e11) != penalty
+    assert digest(slide_damping_model="rayleigh") != digest()
+    assert digest(slide_damping_model="rayleigh", loss_factor=0.3) != digest(slide_damping_model="rayleigh")

@@ -23,7 +23,7 @@ def doc_files() -> dict[str, str]:
     """Files of the documented example: each fenced block preceded by ``<!-- example-file: NAME -->``."""
     text = DOC.read_text()
     found = re.findall(r"<!-- example-file: (\S+) -->\s*```[a-z]*\n(.*?)```", text, flags=re.S)
-    return {name: body for name, body in found}
+    return dict(found)
 
 
 def small_scan(seed: int) -> Surface:
@@ -85,7 +85,8 @@ def test_metadata_types_and_order(camp):
     (camp / "sites.csv").write_text(
         "zone,site,section,scan,dft,temperature_c,aadt\n"
         "north,E1-1,E1,scans/E1-1.x3p,dft/E1-1.csv,15.8,1200\n"
-        ",E1-2,E1,scans/E1-2.x3p,dft/E1-2.csv,15.8,\n")
+        ",E1-2,E1,scans/E1-2.x3p,dft/E1-2.csv,15.8,\n"
+    )
     c = load_campaign(camp, check_scans=False)
     assert c.metadata_columns == ["zone", "aadt"]
     assert list(c.sites.columns)[:2] == ["zone", "site"]
@@ -107,23 +108,26 @@ def row(site="E1-1", section="E1", scan="scans/E1-1.x3p", dft="dft/E1-1.csv", t=
     return f"{site},{section},{scan},{dft},{t},HMA,14\n"
 
 
-@pytest.mark.parametrize("body,line,column,fragment", [
-    (row(site=""), 2, "site", "a site id"),
-    (row(site="E1 1"), 2, "site", "letters, digits"),
-    (row(site="_x"), 2, "site", "starting with a letter or digit"),
-    (row() + row(), 3, "site", "a unique site id"),
-    (row() + row(site="e1-1"), 3, "site", "case-insensitive"),
-    ("", 2, None, "at least one site row"),
-    (row(section=""), 2, "section", "a section name"),
-    (row(scan="scans/none.x3p"), 2, "scan", "an existing scan file"),
-    (row(dft="dft/none.csv"), 2, "dft", "an existing dft file"),
-    (row(scan=""), 2, "scan", "a path to the scan file"),
-    (row(t="warm"), 2, "temperature_c", "a number"),
-    (row(t="nan"), 2, "temperature_c", "a finite number"),
-    (row(t="61.0F"), 2, "temperature_c", "a number"),
-    (row(t="289.1"), 2, "temperature_c", "between -50 and 80"),
-    ("E1-1,E1,scans/E1-1.x3p\n", 2, None, "7 fields"),
-])
+@pytest.mark.parametrize(
+    "body,line,column,fragment",
+    [
+        (row(site=""), 2, "site", "a site id"),
+        (row(site="E1 1"), 2, "site", "letters, digits"),
+        (row(site="_x"), 2, "site", "starting with a letter or digit"),
+        (row() + row(), 3, "site", "a unique site id"),
+        (row() + row(site="e1-1"), 3, "site", "case-insensitive"),
+        ("", 2, None, "at least one site row"),
+        (row(section=""), 2, "section", "a section name"),
+        (row(scan="scans/none.x3p"), 2, "scan", "an existing scan file"),
+        (row(dft="dft/none.csv"), 2, "dft", "an existing dft file"),
+        (row(scan=""), 2, "scan", "a path to the scan file"),
+        (row(t="warm"), 2, "temperature_c", "a number"),
+        (row(t="nan"), 2, "temperature_c", "a finite number"),
+        (row(t="61.0F"), 2, "temperature_c", "a number"),
+        (row(t="289.1"), 2, "temperature_c", "between -50 and 80"),
+        ("E1-1,E1,scans/E1-1.x3p\n", 2, None, "7 fields"),
+    ],
+)
 def test_each_row_error(camp, body, line, column, fragment):
     e = bad_sites(camp, HEAD + body)
     assert len(e.errors) == 1
@@ -151,6 +155,7 @@ def test_corrupt_scan_header_and_full(camp):
     # flip a data byte: the header check passes (sizes, main.xml checksum); only the full read sees it
     write_x3p(scan, small_scan(0), dtype="D", meta=DATE)
     import zipfile
+
     with zipfile.ZipFile(scan) as zf:
         m = {n: zf.read(n) for n in zf.namelist()}
     data = bytearray(m["bindata/data.bin"])

@@ -50,8 +50,24 @@ def test_texture_table_to_csv(campaign, tmp_path, capsys):
 
 def test_simulate_prints_sn(campaign, tmp_path, capsys):
     trace = tmp_path / "trace.parquet"
-    rc = main(["simulate", str(campaign / "scans" / "E1-1.x3p"), "--speed", "60", "--mu-s", "0.5", "--mu-k", "0.4",
-               "--alpha", "0.3", "--preset", "quick", "--trace", str(trace)])
+    rc = main(
+        [
+            "simulate",
+            str(campaign / "scans" / "E1-1.x3p"),
+            "--speed",
+            "60",
+            "--mu-s",
+            "0.5",
+            "--mu-k",
+            "0.4",
+            "--alpha",
+            "0.3",
+            "--preset",
+            "quick",
+            "--trace",
+            str(trace),
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     sn = float(out.split("SN = ")[1].split()[0])

@@ -4,16 +4,13 @@
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pandas as pd
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT, run_snakemake
 
 TINY = """
 synthetic:
@@ -35,10 +32,9 @@ mesh_study:
 
 
 def _run(args, cwd, timeout=1500):
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    cmd = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "--directory", str(cwd),
-           "--configfile", str(ROOT / "config" / "config.yaml"), str(cwd / "tiny.yaml"), *args]
-    return subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT, timeout=timeout)
+    return run_snakemake(
+        *args, workdir=cwd, configfiles=[cwd / "tiny.yaml"], cores=None, cwd=ROOT, timeout=timeout, check=False
+    )
 
 
 @pytest.fixture()
@@ -94,32 +90,51 @@ SCONTROL_GROUP_JOB = (
 
 def test_scontrol_job_is_read_into_a_grant():
     from skidsim.cluster import parse_scontrol_job, rule_of
+
     g = parse_scontrol_job(SCONTROL_GROUP_JOB)
     assert (g.job_id, g.state, g.cpus, g.mem_mb, g.time_limit_min) == ("8", "COMPLETED", 2, 4500, 30)
     assert rule_of(g.comment).startswith("site_texture_despeckle")
     assert rule_of("rule_calibrate_wildcards_E1-1_ours") == "calibrate"
 
 
-@pytest.mark.parametrize("text, minutes", [("00:30:00", 30), ("2:00:00", 120), ("1-00:00:00", 1440),
-                                           ("10:00", 10), ("45", 45), ("UNLIMITED", None), ("0:00:30", 1)])
+@pytest.mark.parametrize(
+    "text, minutes",
+    [
+        ("00:30:00", 30),
+        ("2:00:00", 120),
+        ("1-00:00:00", 1440),
+        ("10:00", 10),
+        ("45", 45),
+        ("UNLIMITED", None),
+        ("0:00:30", 1),
+    ],
+)
 def test_slurm_time_limits_in_minutes(text, minutes):
     from skidsim.cluster import time_to_min
+
     assert time_to_min(text) == minutes
 
 
 def test_sinfo_nodes_sacct_lines_and_caps():
     from skidsim.cluster import caps, mem_to_mb, parse_sacct, parse_sinfo_nodes
+
     nodes = parse_sinfo_nodes("vm|2|23081\nbig|64|512000\nbig|64|512000\n")
     assert [(n.name, n.cpus, n.mem_mb) for n in nodes] == [("vm", 2, 23081), ("big", 64, 512000)]
     assert caps(nodes) == (2, 23081)
     assert mem_to_mb("2G") == 2048 and mem_to_mb("1500M") == 1500 and mem_to_mb("1500") == 1500
     (g,) = parse_sacct("13|CANCELLED by 0|1|1500M|02:00:00|rule_calibrate_wildcards_E1-1_ours\n")
-    assert (g.state, g.cpus, g.mem_mb, g.time_limit_min, g.comment) == \
-        ("CANCELLED", 1, 1500, 120, "rule_calibrate_wildcards_E1-1_ours")
+    assert (g.state, g.cpus, g.mem_mb, g.time_limit_min, g.comment) == (
+        "CANCELLED",
+        1,
+        1500,
+        120,
+        "rule_calibrate_wildcards_E1-1_ours",
+    )
 
 
 def test_unreadable_slurm_output_names_the_field():
     from skidsim.cluster import ClusterError, mem_to_mb, parse_scontrol_job
+
     with pytest.raises(ClusterError, match="memory of node7.*'lots'"):
         mem_to_mb("lots", "memory of node7")
     with pytest.raises(ClusterError, match="no field JobState"):
@@ -129,10 +144,12 @@ def test_unreadable_slurm_output_names_the_field():
 def test_cluster_profile_settings_are_not_overridden_by_the_workflow_profile():
     """profiles/default is loaded as the workflow profile also under --profile profiles/slurm, and wins: the
     effective settings must be the cluster profile's (latency-wait 60 s, squeue status, retries)."""
-    code = ("from snakemake.cli import parse_args; "
-            "p, a = parse_args(['-s', 'Snakefile', '--profile', 'profiles/slurm', '-n']); "
-            "print(a.latency_wait, a.slurm_status_command, a.retries, a.jobs, a.executor); "
-            "p, a = parse_args(['-s', 'Snakefile', '-n']); print(a.latency_wait, a.executor)")
+    code = (
+        "from snakemake.cli import parse_args; "
+        "p, a = parse_args(['-s', 'Snakefile', '--profile', 'profiles/slurm', '-n']); "
+        "print(a.latency_wait, a.slurm_status_command, a.retries, a.jobs, a.executor); "
+        "p, a = parse_args(['-s', 'Snakefile', '-n']); print(a.latency_wait, a.executor)"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr[-2000:]
     cluster_line, local_line = r.stdout.strip().splitlines()[-2:]

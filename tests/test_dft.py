@@ -16,12 +16,15 @@ def write(tmp_path, text, name="t.csv"):
 
 
 def test_read_unsorted_extra_columns_duplicates_averaged(tmp_path):
-    p = write(tmp_path, "time_s,mu,speed_kmh,torque_nm\n"
-                        "0.0,0.40,80,1\n"
-                        "0.5,0.50,40,1\n"
-                        "0.7,0.52,40,1\n"  # duplicate speed: mean 0.51
-                        "0.9,0.60,10,1\n"
-                        "\n")
+    p = write(
+        tmp_path,
+        "time_s,mu,speed_kmh,torque_nm\n"
+        "0.0,0.40,80,1\n"
+        "0.5,0.50,40,1\n"
+        "0.7,0.52,40,1\n"  # duplicate speed: mean 0.51
+        "0.9,0.60,10,1\n"
+        "\n",
+    )
     tr = read_dft(p)
     np.testing.assert_array_equal(tr.speeds_kmh, [10.0, 40.0, 80.0])
     np.testing.assert_allclose(tr.mu, [0.60, 0.51, 0.40])
@@ -46,8 +49,9 @@ def test_smooth_at_reproduces_a_line_and_averages_noise():
     v = np.linspace(10, 80, 141)  # 0.5 km/h steps
     line = 0.7 - 0.004 * v
     tr = DftTrace.from_samples(v, line)
-    np.testing.assert_allclose(tr.smooth_at([20, 45.2, 79], window_kmh=5), 0.7 - 0.004 * np.array([20, 45.2, 79]),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        tr.smooth_at([20, 45.2, 79], window_kmh=5), 0.7 - 0.004 * np.array([20, 45.2, 79]), rtol=1e-12
+    )
     # on a noisy trace the local fit is closer to the truth than the raw samples (variance ~ 1/n)
     rng = np.random.default_rng(7)
     noisy = DftTrace.from_samples(v, line + rng.normal(0, 0.02, v.size))
@@ -67,19 +71,22 @@ def test_smooth_at_hand_value_and_one_sided_window():
         tr.smooth_at(25, window_kmh=2)
 
 
-@pytest.mark.parametrize("text,row,column,fragment", [
-    ("speed,mu\n20,0.5\n30,0.4\n", 1, None, "missing speed_kmh"),
-    ("speed_kmh,friction\n20,0.5\n30,0.4\n", 1, None, "missing mu"),
-    ("speed_kmh,mu\n20,0.5\n30,abc\n40,0.3\n", 3, "mu", "a number"),
-    ("speed_kmh,mu\n20,0.5\n\n30,0.4\nfast,0.3\n", 5, "speed_kmh", "a number"),
-    ("speed_kmh,mu\n20,0.5\n30,nan\n", 3, "mu", "a finite number"),
-    ("speed_kmh,mu\n20,0.5\n30,1.5\n", 3, "mu", "between 0 and 1.5"),
-    ("speed_kmh,mu\n20,0\n30,0.4\n", 2, "mu", "between 0 and 1.5"),
-    ("speed_kmh,mu\n-5,0.5\n30,0.4\n", 2, "speed_kmh", ">= 0"),
-    ("speed_kmh,mu\n20,0.5\n", None, None, "at least 2 data rows"),
-    ("speed_kmh,mu\n20,0.5\n20,0.4\n", None, None, "2 or more distinct speeds"),
-    ("", 1, None, "empty file"),
-])
+@pytest.mark.parametrize(
+    "text,row,column,fragment",
+    [
+        ("speed,mu\n20,0.5\n30,0.4\n", 1, None, "missing speed_kmh"),
+        ("speed_kmh,friction\n20,0.5\n30,0.4\n", 1, None, "missing mu"),
+        ("speed_kmh,mu\n20,0.5\n30,abc\n40,0.3\n", 3, "mu", "a number"),
+        ("speed_kmh,mu\n20,0.5\n\n30,0.4\nfast,0.3\n", 5, "speed_kmh", "a number"),
+        ("speed_kmh,mu\n20,0.5\n30,nan\n", 3, "mu", "a finite number"),
+        ("speed_kmh,mu\n20,0.5\n30,1.5\n", 3, "mu", "between 0 and 1.5"),
+        ("speed_kmh,mu\n20,0\n30,0.4\n", 2, "mu", "between 0 and 1.5"),
+        ("speed_kmh,mu\n-5,0.5\n30,0.4\n", 2, "speed_kmh", ">= 0"),
+        ("speed_kmh,mu\n20,0.5\n", None, None, "at least 2 data rows"),
+        ("speed_kmh,mu\n20,0.5\n20,0.4\n", None, None, "2 or more distinct speeds"),
+        ("", 1, None, "empty file"),
+    ],
+)
 def test_bad_traces(tmp_path, text, row, column, fragment):
     p = write(tmp_path, text, name="bad.csv")
     with pytest.raises(DftError) as ei:

@@ -13,14 +13,10 @@ calibration only, two texture groups. Measured numbers for these campaigns are i
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import run_snakemake, snakemake_env
 
 BASE = """
 synthetic:
@@ -55,21 +51,39 @@ NO_EFFECTS = """    temperature: {enabled: false}
 """
 
 
-def run_campaign(workdir: Path, *, seed: int, effects: str, synthetic_extra: str = "",
-                 sections: str = SECTIONS, sites_per_section: int = 3) -> dict:
+def run_campaign(
+    workdir: Path,
+    *,
+    seed: int,
+    effects: str,
+    synthetic_extra: str = "",
+    sections: str = SECTIONS,
+    sites_per_section: int = 3,
+) -> dict:
     """Write the config, run the workflow to the diagnosis, return causes.json and gain.json."""
     cfg = workdir / "campaign.yaml"
-    cfg.write_text(BASE.format(seed=seed, sections=sections, synthetic_extra=synthetic_extra, effects=effects,
-                               sites_per_section=sites_per_section))
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
-    cmd = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "--directory", str(workdir),
-           "--configfile", str(ROOT / "config" / "config.yaml"), str(cfg), "--cores", "2",
-           "results/diagnosis/causes.json", "results/diagnosis/gain.json"]
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT, timeout=1800)
-    assert r.returncode == 0, (r.stdout + r.stderr)[-5000:]
+    cfg.write_text(
+        BASE.format(
+            seed=seed,
+            sections=sections,
+            synthetic_extra=synthetic_extra,
+            effects=effects,
+            sites_per_section=sites_per_section,
+        )
+    )
+    run_snakemake(
+        "results/diagnosis/causes.json",
+        "results/diagnosis/gain.json",
+        workdir=workdir,
+        configfiles=[cfg],
+        cores=2,
+        env=snakemake_env(OMP_NUM_THREADS="1"),
+    )
     diag = workdir / "results" / "diagnosis"
-    return {"causes": json.loads((diag / "causes.json").read_text()),
-            "gain": json.loads((diag / "gain.json").read_text())}
+    return {
+        "causes": json.loads((diag / "causes.json").read_text()),
+        "gain": json.loads((diag / "gain.json").read_text()),
+    }
 
 
 def named(causes: list[dict]) -> dict | None:
@@ -81,8 +95,9 @@ def test_workflow_names_a_hidden_metadata_effect(tmp_path):
     """Friction falls with the site's station along the section (an arbitrary metadata column, -0.03 % per ft:
     -6 % at 200 ft, -18 % at 600 ft); the workflow names station_ft between sites and the extension's gain on
     held-out sites excludes zero."""
-    effects = NO_EFFECTS.replace("metadata: {enabled: false}",
-                                 "metadata: {enabled: true, column: station_ft, size: -0.0003, reference: 0.0}")
+    effects = NO_EFFECTS.replace(
+        "metadata: {enabled: false}", "metadata: {enabled: true, column: station_ft, size: -0.0003, reference: 0.0}"
+    )
     out = run_campaign(tmp_path, seed=7, effects=effects)
     top = named(out["causes"])
     assert top is not None, [(c["variable"], c["level"], c["kind"], c["p_adjusted"]) for c in out["causes"][:5]]
@@ -100,8 +115,9 @@ def test_workflow_null_campaign_names_nothing(tmp_path):
     """No hidden effect (the truth is the exponential-decay law of the texture): nothing is named and the
     gain record is the baseline. 16 sites (8 sections x 2) to keep the suite within its time budget; the 36-site
     null campaigns measured through the workflow are in docs/model-criticism.md, section 9."""
-    out = run_campaign(tmp_path, seed=7, effects=NO_EFFECTS,
-                       sections="[E1, E2, E3, E4, E5, E6, C1, C2]", sites_per_section=2)
+    out = run_campaign(
+        tmp_path, seed=7, effects=NO_EFFECTS, sections="[E1, E2, E3, E4, E5, E6, C1, C2]", sites_per_section=2
+    )
     top = named(out["causes"])
     assert top is None, top
     assert not any(c["significant"] for c in out["causes"])

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_diagnosis_workflow import NO_EFFECTS, named, run_campaign  # noqa: E402
+from test_diagnosis_workflow import NO_EFFECTS, named, run_campaign
 
 
 @pytest.mark.slow

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_diagnosis_workflow import NO_EFFECTS, named, run_campaign  # noqa: E402
+from test_diagnosis_workflow import NO_EFFECTS, named, run_campaign
 
 SEASONS = """  temperature_range_c: [5.0, 35.0]
   temperature_site_sd_c: 4.0
@@ -48,8 +48,11 @@ def test_workflow_names_a_hidden_temperature_effect(tmp_path):
 
 @pytest.mark.slow
 def test_workflow_names_a_hidden_mix_effect(tmp_path):
-    effects = NO_EFFECTS + """    section: {enabled: true, column: mix, offsets: {"WMA chemical": -0.05}}
+    effects = (
+        NO_EFFECTS
+        + """    section: {enabled: true, column: mix, offsets: {"WMA chemical": -0.05}}
 """
+    )
     out = run_campaign(tmp_path, seed=7, effects=effects, sites_per_section=2)  # mix is tested on its 12 sections
     top = named(out["causes"])
     assert top is not None, [(c["variable"], c["level"], c["kind"], c["p_adjusted"]) for c in out["causes"][:5]]

@@ -10,9 +10,21 @@ import numpy as np
 import pytest
 
 from skidsim.errors import InputError
-from skidsim.exports import (CalculixError, hex_volumes, parse_dat, pavement_hex_mesh, pavement_surface_mesh,
-                             run_calculix, slider_placement, triangulated_volume_m3, write_gmsh, write_inp,
-                             write_stl, write_vtu_pavement, write_vtu_slider)
+from skidsim.exports import (
+    CalculixError,
+    hex_volumes,
+    parse_dat,
+    pavement_hex_mesh,
+    pavement_surface_mesh,
+    run_calculix,
+    slider_placement,
+    triangulated_volume_m3,
+    write_gmsh,
+    write_inp,
+    write_stl,
+    write_vtu_pavement,
+    write_vtu_slider,
+)
 from skidsim.friction import ExponentialDecay
 from skidsim.reconstruct import Heightfield
 from skidsim.slidermesh import SliderMesh
@@ -77,7 +89,7 @@ def test_hex_mesh_volume_and_orientation():
         assert np.isclose(vols.sum(), hf.volume_m3(), rtol=1e-12)
         assert hexes.shape == (layers * (hf.shape[0] - 1) * (hf.shape[1] - 1), 8)
     # Top-layer faces 5-8 carry the surface heights.
-    top = pts[hexes[-(hf.shape[0] - 1) * (hf.shape[1] - 1):, 4]]
+    top = pts[hexes[-(hf.shape[0] - 1) * (hf.shape[1] - 1) :, 4]]
     np.testing.assert_allclose(top[:, 2], hf.z_m[:-1, :-1].ravel(), atol=0)
     with pytest.raises(InputError):
         pavement_hex_mesh(hf, 0)
@@ -95,8 +107,9 @@ def test_vtu_pavement_and_slider_round_trip(tmp_path):
     sl = SliderMesh.box(element_mm=4.0)
     u = np.zeros((sl.n_nodes, 3))
     u[:, 2] = -1e-5 * sl.points[:, 0] / sl.size_m[0]
-    q = write_vtu_slider(sl, tmp_path / "slider.vtu", point_data={"p": np.arange(sl.n_nodes, dtype=float)},
-                         displacement_m=u)
+    q = write_vtu_slider(
+        sl, tmp_path / "slider.vtu", point_data={"p": np.arange(sl.n_nodes, dtype=float)}, displacement_m=u
+    )
     s = meshio.read(q)
     np.testing.assert_allclose(s.points, (sl.points + u) * 1e3, atol=1e-12)
     np.testing.assert_array_equal(s.cells_dict["hexahedron"], sl.connectivity)
@@ -243,8 +256,16 @@ def test_calculix_accepts_dynamic_deck(tmp_path):
     _ccx_or_skip()
     hf = _patch(26.0, 20.0)
     sl = SliderMesh.box(element_mm=4.0)
-    d = write_inp(tmp_path / "dyn.inp", sl, hf, LAW, step="dynamic", speed_kmh=20.0, slide_distance_m=2e-5,
-                  center_xy_m=(0.013, 0.010))
+    d = write_inp(
+        tmp_path / "dyn.inp",
+        sl,
+        hf,
+        LAW,
+        step="dynamic",
+        speed_kmh=20.0,
+        slide_distance_m=2e-5,
+        center_xy_m=(0.013, 0.010),
+    )
     r = run_calculix(d.path, deck=d)
     assert r.time == pytest.approx(2e-5 / (20 / 3.6), rel=1e-6)
     top = r.slider_displacements_m[sl.top_nodes()]

@@ -1,4 +1,4 @@
-"""Tests of skidsim.extensions and of the law-level recalibration in skidsim.diagnosis."""
+"""Tests of skidsim.criticism.extensions and of the law-level recalibration (skidsim.criticism.recalibration)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,19 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from skidsim import diagnosis as dg
+from skidsim.criticism.covariates import site_covariates
+from skidsim.criticism.extensions import (
+    CovariateTerm,
+    DrainageIFI,
+    TemperatureShift,
+    exp_curve,
+    fit_exp_curves,
+    ifi_speed_constant_kmh,
+    wlf_log10_shift,
+)
+from skidsim.criticism.recalibration import predict_extended, recalibrate
+from skidsim.criticism.scopes import make_scope
 from skidsim.errors import ConfigError, InputError
-from skidsim.extensions import (CovariateTerm, DrainageIFI, TemperatureShift, exp_curve, fit_exp_curves,
-                                ifi_speed_constant_kmh, wlf_log10_shift)
 
 
 def test_wlf_values_and_pole():
@@ -29,7 +38,9 @@ def test_temperature_shift_anchor_and_monotone():
     assert np.all(np.diff(k) < 0)  # warmer rubber behaves like slower sliding
     # sensitivity at T - T_r = 56 K: d log10 a_T / dT = -C1 C2 / (C2 + dT)^2
     h = 1e-4
-    d = (np.log10(ext.speed_factor(16.0 + h, 16.0, -40.0)) - np.log10(ext.speed_factor(16.0 - h, 16.0, -40.0))) / (2 * h)
+    d = (np.log10(ext.speed_factor(16.0 + h, 16.0, -40.0)) - np.log10(ext.speed_factor(16.0 - h, 16.0, -40.0))) / (
+        2 * h
+    )
     assert d == pytest.approx(-8.86 * 101.6 / (101.6 + 56.0) ** 2, rel=1e-6)
 
 
@@ -47,7 +58,7 @@ def _aitken(y1, y2, y3, dv_ms):
     """Closed form of the exponential through three equally spaced points (field notes)."""
     r = (y2 - y3) / (y1 - y2)
     alpha = -np.log(r) / dv_ms
-    mu_k = (y1 * y3 - y2 ** 2) / (y1 + y3 - 2 * y2)
+    mu_k = (y1 * y3 - y2**2) / (y1 + y3 - 2 * y2)
     return mu_k, alpha
 
 
@@ -87,7 +98,7 @@ def test_squeeze_multiplier_and_bad_form():
     ext = DrainageIFI(form="squeeze")
     inv = ext.inverse_speed_constant(0.8)
     assert ext.multiplier(0.0, inv, 0.3) == pytest.approx(1.0)
-    assert ext.multiplier(60.0, inv, 0.3) == pytest.approx(1.0 - 0.3 * 3600.0 * inv ** 2)
+    assert ext.multiplier(60.0, inv, 0.3) == pytest.approx(1.0 - 0.3 * 3600.0 * inv**2)
     assert ext.multiplier(500.0, inv, 0.3) == pytest.approx(ext.floor)
     with pytest.raises(ConfigError, match="form"):
         DrainageIFI(form="hydro")
@@ -100,8 +111,13 @@ def _scope_tables(kappa=None, t_shift=False, n_sec=8, per=3, seed=0, form="ifi")
     rng = np.random.default_rng(seed)
     n = n_sec * per
     site = [f"s{i}" for i in range(n)]
-    sites = pd.DataFrame({"site": site, "section": np.repeat([f"S{k}" for k in range(n_sec)], per),
-                          "temperature_c": 16.0 + np.linspace(-6, 6, n)[rng.permutation(n)]})
+    sites = pd.DataFrame(
+        {
+            "site": site,
+            "section": np.repeat([f"S{k}" for k in range(n_sec)], per),
+            "temperature_c": 16.0 + np.linspace(-6, 6, n)[rng.permutation(n)],
+        }
+    )
     mpd = rng.uniform(0.4, 1.4, n)
     tex = pd.DataFrame({"site": site, "mpd_mm": mpd})
     b, c, a = rng.uniform(0.3, 0.4, n), rng.uniform(0.2, 0.3, n), rng.uniform(0.06, 0.14, n)
@@ -133,17 +149,20 @@ def test_recalibrate_drainage_recovers_kappa_within_site(form, kappa):
     b, c, a = fit_exp_curves(v3, cal["measured"].to_numpy().reshape(-1, 3))
     sb = dict(zip(cal["site"].unique(), zip(b, c, a)))
     t["model"] = [exp_curve(v, *sb[s]) for s, v in zip(t["site"], t["speed_kmh"])]
-    res = t.assign(level="within-site", residual=t["measured"] - t["model"],
-                   section=t["site"].map(sites.set_index("site")["section"]))
-    cov, _ = dg.site_covariates(sites, tex)
-    sc = dg._make_scope(res, "within-site")
+    res = t.assign(
+        level="within-site",
+        residual=t["measured"] - t["model"],
+        section=t["site"].map(sites.set_index("site")["section"]),
+    )
+    cov, _ = site_covariates(sites, tex)
+    sc = make_scope(res, "within-site")
     train = np.ones(len(sc.sites), bool)
-    p = dg.recalibrate(DrainageIFI(mpd_column="mpd_mm"), sc, cov, train)
+    p = recalibrate(DrainageIFI(mpd_column="mpd_mm"), sc, cov, train)
     assert p["form"] == form
     # (the squeeze truth is 1 at 20 km/h, the extension at 0 km/h: a per-site factor 1 + 400 kappa / Sp^2 <= 1.04
     # that the refitted law absorbs only in part)
     assert p["kappa"] == pytest.approx(kappa, rel=0.025 if form == "ifi" else 0.08)
-    after = dg.predict_extended(DrainageIFI(mpd_column="mpd_mm"), p, sc, cov, train)
+    after = predict_extended(DrainageIFI(mpd_column="mpd_mm"), p, sc, cov, train)
     before_err = np.abs(sc.rows["measured"] - sc.rows["before"]).max()
     assert before_err > 1e-3  # the plain law misses the drainage shape at held-out speeds ...
     assert np.abs(sc.rows["measured"] - after).max() < 0.05 * before_err  # ... the extension recovers it
@@ -152,13 +171,17 @@ def test_recalibrate_drainage_recovers_kappa_within_site(form, kappa):
 def test_recalibrate_temperature_recovers_reference_between_sites():
     sites, tex, t = _scope_tables(kappa=None)
     # texture-model predictions = the temperature-free law; the truth is shifted by WLF (T_r = -40 C)
-    res = t.assign(level="between-site", model=t["base"], residual=t["measured"] - t["base"],
-                   section=t["site"].map(sites.set_index("site")["section"]))
-    cov, _ = dg.site_covariates(sites, tex)
-    sc = dg._make_scope(res, "between-site")
+    res = t.assign(
+        level="between-site",
+        model=t["base"],
+        residual=t["measured"] - t["base"],
+        section=t["site"].map(sites.set_index("site")["section"]),
+    )
+    cov, _ = site_covariates(sites, tex)
+    sc = make_scope(res, "between-site")
     train = np.ones(len(sc.sites), bool)
-    p = dg.recalibrate(TemperatureShift(), sc, cov, train)
+    p = recalibrate(TemperatureShift(), sc, cov, train)
     assert p["t_ref_c"] == pytest.approx(-40.0, abs=1.0)
-    after = dg.predict_extended(TemperatureShift(), p, sc, cov, train)
+    after = predict_extended(TemperatureShift(), p, sc, cov, train)
     assert np.sqrt(np.mean((after - sc.rows["measured"]) ** 2)) < 2e-4
     assert np.sqrt(np.mean((sc.rows["before"] - sc.rows["measured"]) ** 2)) > 5e-3

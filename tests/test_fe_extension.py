@@ -3,22 +3,26 @@
 from __future__ import annotations
 
 import math
-import os
 import re
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_snakemake
 
+from skidsim.criticism.fe_extension import (
+    DEFAULT_PRONY,
+    campaign_speed_gain,
+    fe_extension_decision,
+    fe_gain_record,
+    prony_moduli,
+    site_fe_gain,
+    site_speed_gain,
+    viscoelastic_solver_cfg,
+)
 from skidsim.errors import ConfigError
-from skidsim.fe_extension import (DEFAULT_PRONY, campaign_speed_gain, fe_extension_decision, prony_moduli,
-                                  site_speed_gain, viscoelastic_solver_cfg)
 from skidsim.friction import ExponentialDecay
 from skidsim.solver import SinusoidalSurface, SolverConfig, simulate
 
-ROOT = Path(__file__).resolve().parents[1]
 VAL = [30.0, 50.0, 70.0]
 MEAS = {20.0: 0.6, 30.0: 0.5, 40.0: 0.45, 50.0: 0.4, 60.0: 0.35, 70.0: 0.3}
 
@@ -60,24 +64,57 @@ def test_campaign_gain_pooled_and_bootstrap():
     assert same["gain_excludes_zero"] is True
 
 
+def test_fe_gain_record_applied_and_not():
+    """fe_gain.json: the decision and named cause always; where applied, the per-site entries (with the
+    recalibrated law), the pooled campaign gain with the given bootstrap settings, the Prony series and speeds."""
+    from types import SimpleNamespace
+
+    from skidsim.criticism import DiagnosisOptions
+
+    law = SimpleNamespace(params=SimpleNamespace(mu_s=0.8, mu_k=0.3, alpha=0.05), converged=True, n_fe_runs=7)
+    a = site_fe_gain(MEAS, {30.0: 0.52, 50.0: 0.43, 70.0: 0.34}, {30.0: 0.51, 50.0: 0.39, 70.0: 0.30}, VAL, law)
+    b = site_fe_gain(MEAS, {30.0: 0.46, 50.0: 0.40, 70.0: 0.30}, {30.0: 0.55, 50.0: 0.40, 70.0: 0.30}, VAL, law)
+    assert a["params_viscoelastic"] == {"mu_s": 0.8, "mu_k": 0.3, "alpha": 0.05} and a["n_fe_runs_viscoelastic"] == 7
+    opts = DiagnosisOptions(n_boot=500, seed=3)
+    rec = fe_gain_record(
+        "always", [CAUSE_T], {"A": a, "B": b}, prony=DEFAULT_PRONY, validation_speeds_kmh=VAL, options=opts
+    )
+    assert rec["applied"] and rec["named_cause"]["variable"] == "temperature_c"
+    assert rec["held_out_speeds"] == campaign_speed_gain({"A": a, "B": b}, n_boot=500, seed=3)
+    assert rec["held_out_speeds"]["rmse_before"] == pytest.approx(math.sqrt(45e-4 / 6), abs=1e-12)
+    assert rec["prony"]["prony_tau_s"] == DEFAULT_PRONY["prony_tau_s"] and rec["validation_speeds_kmh"] == VAL
+    off = fe_gain_record("auto", [CAUSE_T])
+    assert not off["applied"] and "held_out_speeds" not in off and "not a within-site shape" in off["reason"]
+    with pytest.raises(ValueError, match="not inputs"):
+        fe_gain_record("always", [], None)
+
+
 CAUSE_T = {"variable": "temperature_c", "level": "between-site", "kind": "main", "significant": True}
 CAUSE_FF = {"variable": "functional_form", "level": "within-site", "kind": "functional_form", "significant": True}
-CAUSE_MPD = {"variable": "macro_Sa", "level": "within-site", "kind": "x_speed", "group": ["macro_Sa", "profile_MPD"],
-             "significant": True}
+CAUSE_MPD = {
+    "variable": "macro_Sa",
+    "level": "within-site",
+    "kind": "x_speed",
+    "group": ["macro_Sa", "profile_MPD"],
+    "significant": True,
+}
 
 
-@pytest.mark.parametrize("mode, causes, applied", [
-    ("auto", [CAUSE_T, CAUSE_FF], False),  # first entry names the cause: temperature
-    ("auto", [CAUSE_FF, CAUSE_T], True),
-    ("auto", [CAUSE_MPD], True),
-    ("auto", [dict(CAUSE_MPD, level="between-site")], False),
-    ("auto", [dict(CAUSE_FF, level="between-site")], False),
-    ("auto", [dict(CAUSE_FF, significant=False)], False),
-    ("auto", [], False),
-    ("always", [CAUSE_T], True),
-    ("always", [], True),
-    ("never", [CAUSE_FF], False),
-])
+@pytest.mark.parametrize(
+    "mode, causes, applied",
+    [
+        ("auto", [CAUSE_T, CAUSE_FF], False),  # first entry names the cause: temperature
+        ("auto", [CAUSE_FF, CAUSE_T], True),
+        ("auto", [CAUSE_MPD], True),
+        ("auto", [dict(CAUSE_MPD, level="between-site")], False),
+        ("auto", [dict(CAUSE_FF, level="between-site")], False),
+        ("auto", [dict(CAUSE_FF, significant=False)], False),
+        ("auto", [], False),
+        ("always", [CAUSE_T], True),
+        ("always", [], True),
+        ("never", [CAUSE_FF], False),
+    ],
+)
 def test_decision(mode, causes, applied):
     ok, reason = fe_extension_decision(mode, causes)
     assert ok is applied
@@ -118,16 +155,17 @@ def _dry(tmp_path, mode):
     (tmp_path / "tiny.yaml").write_text(
         "synthetic:\n  seed: 5\n  sections: [E1, E6, C2]\n  sites_per_section: 1\n  shape: [300, 600]\n"
         "  spacing_mm: 0.2\nsolver:\n  preset: quick\ncalibration:\n  methods: [ours]\nmesh_study:\n  sizes_mm: []\n"
-        f"diagnosis:\n  fe_extension: {mode}\n")
-    cmd = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "--directory", str(tmp_path),
-           "--configfile", str(ROOT / "config" / "config.yaml"), str(tmp_path / "tiny.yaml"), "--cores", "1", "-n",
-           "results/diagnosis/fe_gain.json"]
-    r = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(ROOT / "src")),
-                       cwd=ROOT, timeout=300)
+        f"diagnosis:\n  fe_extension: {mode}\n"
+    )
+    r = run_snakemake(
+        "-n", "results/diagnosis/fe_gain.json", workdir=tmp_path, configfiles=[tmp_path / "tiny.yaml"], timeout=300
+    )
     out = r.stdout + r.stderr
-    assert r.returncode == 0, out[-3000:]
-    return {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", out, flags=re.M)
-            if m.group(1) != "total"}
+    return {
+        m.group(1): int(m.group(2))
+        for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", out, flags=re.M)
+        if m.group(1) != "total"
+    }
 
 
 @pytest.mark.parametrize("mode, n_recal, checkpoint", [("always", 3, 0), ("never", 0, 0), ("auto", 0, 1)])

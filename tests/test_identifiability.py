@@ -1,4 +1,4 @@
-"""Tests of skidsim.identifiability: the per-site quality flags and what a trace determines of the law.
+"""Tests of skidsim.calibration.identifiability: the per-site quality flags and what a trace determines of the law.
 
 Surrogate FE: SN = 1.05 mu(v + 5 km/h) (a geometric factor and a slip-speed excess, the physics of our
 calibration's surrogate), so the mapping the calibration learns is exercised; no FE solver.
@@ -6,18 +6,33 @@ calibration's surrogate), so the mapping the calibration learns is exercised; no
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from skidsim.calibration import DEFAULT_BOUNDS, CalibrationResult, FEOutcome, calibrate_fast, simulate_speeds
+from skidsim.calibration import (
+    DEFAULT_BOUNDS,
+    CalibrationResult,
+    FEOutcome,
+    JointOptions,
+    calibrate_fast,
+    simulate_speeds,
+)
+from skidsim.calibration.identifiability import (
+    FLAGS,
+    IdentifiabilityOptions,
+    SurrogateMap,
+    assess,
+    curve_combinations,
+    table_row,
+    trace_noise,
+)
 from skidsim.errors import ConfigError
 from skidsim.friction import ExponentialDecay
 from skidsim.generators.friction_models import mu_piarc, mu_rado
-from skidsim.identifiability import (FLAGS, IdentifiabilityOptions, SurrogateMap, assess, curve_combinations,
-                                     table_row, trace_noise)
 from skidsim.runlog import write_json
 
 G, D_KMH = 1.05, 5.0
@@ -40,17 +55,28 @@ def law_trace(law, noise_sd, seed):
 
 
 def calibrate_and_assess(trace, simulate=smooth_fe, **opts):
-    res = calibrate_fast(simulate, trace, max_fe_runs=12)
+    res = calibrate_fast(simulate, trace, JointOptions(max_fe_runs=12))
     val = simulate_speeds(simulate, res.params, CAL + VAL).assign(method="ours")
-    rec = assess(res, trace, val, options=IdentifiabilityOptions(**opts), calibration_speeds_kmh=CAL,
-                 validation_speeds_kmh=VAL, site="S1")
+    rec = assess(
+        res,
+        trace,
+        val,
+        options=IdentifiabilityOptions(**opts),
+        calibration_speeds_kmh=CAL,
+        validation_speeds_kmh=VAL,
+        site="S1",
+    )
     return res, rec
 
 
 def test_trace_noise_recovers_white_noise_on_a_curved_law():
     law = ExponentialDecay(0.85, 0.2, 0.4)
-    sig = [trace_noise(SPEEDS, law.mu_kmh(SPEEDS) + np.random.default_rng(s).normal(0, 0.01, SPEEDS.size),
-                       range_kmh=(20, 70))["sigma"] for s in range(8)]
+    sig = [
+        trace_noise(
+            SPEEDS, law.mu_kmh(SPEEDS) + np.random.default_rng(s).normal(0, 0.01, SPEEDS.size), range_kmh=(20, 70)
+        )["sigma"]
+        for s in range(8)
+    ]
     assert 0.0085 < np.median(sig) < 0.0115
     few = trace_noise(np.array([20.0, 40.0, 60.0]), np.array([0.5, 0.4, 0.35]))
     assert np.isnan(few["sigma"])
@@ -145,22 +171,29 @@ def test_jacobian_and_combination_gradients_match_finite_differences():
         d[p] += h
         lp = ExponentialDecay(**d)
         np.testing.assert_allclose(J[:, k], (m.predict(lp, v) - m.predict(law, v)) / h, rtol=1e-4, atol=1e-7)
-        np.testing.assert_allclose(grads[:, k], (curve_combinations(lp, 40.0, 20.0)[0] - vals) / h, rtol=1e-4,
-                                   atol=1e-7)
+        np.testing.assert_allclose(
+            grads[:, k], (curve_combinations(lp, 40.0, 20.0)[0] - vals) / h, rtol=1e-4, atol=1e-7
+        )
     # the combinations are the law's quadratic expansion: level, slope * h, curvature * h^2 / 2
     x = np.array([-0.01, 0.0, 0.01])
     mu = law.mu_kmh(40.0 + 20.0 * x)
     assert vals[0] == pytest.approx(mu[1], abs=1e-12)
     assert vals[1] == pytest.approx((mu[2] - mu[0]) / 0.02, rel=1e-4)
-    assert vals[2] == pytest.approx((mu[2] - 2 * mu[1] + mu[0]) / 0.01 ** 2 / 2, rel=1e-3)
+    assert vals[2] == pytest.approx((mu[2] - 2 * mu[1] + mu[0]) / 0.01**2 / 2, rel=1e-3)
 
 
 def test_study_result_uses_identity_mapping_and_its_intervals():
     truth = ExponentialDecay(0.75, 0.30, 0.15)
     trace = trace_of(truth.mu_kmh, 0.005, 2)
-    res = CalibrationResult(method="study", params=ExponentialDecay(0.4, 0.35, 0.6), history=pd.DataFrame(),
-                            converged=False, message="mu_s search ran to max_iter", measured_kmh={20.0: 0.6},
-                            settings={"intervals": {k: list(v) for k, v in DEFAULT_BOUNDS.items()}})
+    res = CalibrationResult(
+        method="study",
+        params=ExponentialDecay(0.4, 0.35, 0.6),
+        history=pd.DataFrame(),
+        converged=False,
+        message="mu_s search ran to max_iter",
+        measured_kmh={20.0: 0.6},
+        settings={"intervals": {k: list(v) for k, v in DEFAULT_BOUNDS.items()}},
+    )
     rec = assess(res, trace, None, calibration_speeds_kmh=CAL, validation_speeds_kmh=VAL, site="S2")
     assert rec["surrogate"]["b"] == [1.0] and rec["surrogate"]["slip_offsets_kmh"] == [0.0]
     assert "not_converged" in rec["flags"] and "max_iter" in rec["reasons"]["not_converged"]
@@ -176,7 +209,7 @@ def test_options_validation():
         IdentifiabilityOptions(outside_law_factor=0.0)
     with pytest.raises(ConfigError, match="confidence"):
         IdentifiabilityOptions(confidence=1.5)
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         IdentifiabilityOptions().fe_miss_max = 1.0  # frozen
 
 
@@ -194,8 +227,9 @@ def test_record_round_trips_to_json_and_table_row(tmp_path):
     from skidsim.plotting.identifiability import plot_identifiability
 
     png = tmp_path / "identifiability.png"
-    plot_identifiability(pd.DataFrame([row, dict(row, site="S2", flags="at_bound", mu_k_open="lower")]), png,
-                         bounds=back["bounds"])
+    plot_identifiability(
+        pd.DataFrame([row, dict(row, site="S2", flags="at_bound", mu_k_open="lower")]), png, bounds=back["bounds"]
+    )
     assert png.stat().st_size > 1000
 
 
@@ -213,13 +247,15 @@ def test_rule_scripts_write_records_table_figure_and_warnings(tmp_path):
     def run(name, **ns):
         runpy.run_path(str(root / "workflow" / "scripts" / name), init_globals={"snakemake": SimpleNamespace(**ns)})
 
-    curves = {"A": lambda v: G * ExponentialDecay(0.75, 0.30, 0.15).mu_kmh(v + D_KMH),
-              "B": lambda v: mu_rado(v, 0.70, 32.0, 0.9)}  # B: outside the law
+    curves = {
+        "A": lambda v: G * ExponentialDecay(0.75, 0.30, 0.15).mu_kmh(v + D_KMH),
+        "B": lambda v: mu_rado(v, 0.70, 32.0, 0.9),
+    }  # B: outside the law
     traces, cal, val, ident = [], [], [], []
     for i, (site, fn) in enumerate(curves.items()):
         tr = trace_of(fn, 0.004, 20 + i)
         traces.append(tr.assign(site=site))
-        res = calibrate_fast(smooth_fe, tr, max_fe_runs=12)
+        res = calibrate_fast(smooth_fe, tr, JointOptions(max_fe_runs=12))
         d = tmp_path / "sites" / site
         res.to_json(d / "calibration_ours.json")
         vt = validation_table({site: {"ours": simulate_speeds(smooth_fe, res.params, CAL + VAL)}}, {site: tr})
@@ -229,23 +265,46 @@ def test_rule_scripts_write_records_table_figure_and_warnings(tmp_path):
     pd.concat(traces).to_parquet(tmp_path / "traces.parquet")
     for site in curves:
         d = tmp_path / "sites" / site
-        run("calibration_identifiability.py", wildcards=SimpleNamespace(site=site, method="ours"),
-            input=SimpleNamespace(calibration=str(d / "calibration_ours.json"), traces=str(tmp_path / "traces.parquet"),
-                                  validation=str(d / "validation.parquet")),
+        run(
+            "calibration_identifiability.py",
+            wildcards=SimpleNamespace(site=site, method="ours"),
+            input=SimpleNamespace(
+                calibration=str(d / "calibration_ours.json"),
+                traces=str(tmp_path / "traces.parquet"),
+                validation=str(d / "validation.parquet"),
+            ),
             output=SimpleNamespace(record=str(d / "identifiability_ours.json")),
-            params=SimpleNamespace(options={"fe_miss_max": 0.03}, calibration_speeds=list(CAL),
-                                   validation_speeds=list(VAL)),
-            log=[str(tmp_path / "logs" / f"{site}.log")])
+            params=SimpleNamespace(
+                options={"fe_miss_max": 0.03}, calibration_speeds=list(CAL), validation_speeds=list(VAL)
+            ),
+            log=[str(tmp_path / "logs" / f"{site}.log")],
+        )
         ident.append(str(d / "identifiability_ours.json"))
     assert "WARNING" not in (tmp_path / "logs" / "A.log").read_text()
     assert "outside_law" in (tmp_path / "logs" / "B.log").read_text()
-    out = {k: str(tmp_path / "cal" / f"{k}.{e}") for k, e in [
-        ("table2", "csv"), ("comparison", "csv"), ("stats", "csv"), ("validation", "parquet"), ("params", "parquet"),
-        ("figure10", "png"), ("curves", "png"), ("identifiability", "csv"), ("identifiability_figure", "png")]}
-    run("calibration_summary.py",
-        input=SimpleNamespace(ingest="", calibrations=cal, validations=val, traces=str(tmp_path / "traces.parquet"),
-                              identifiability=ident),
-        output=SimpleNamespace(**out), params=SimpleNamespace(methods=["ours"]), log=[str(tmp_path / "summary.log")])
+    out = {
+        k: str(tmp_path / "cal" / f"{k}.{e}")
+        for k, e in [
+            ("table2", "csv"),
+            ("comparison", "csv"),
+            ("stats", "csv"),
+            ("validation", "parquet"),
+            ("params", "parquet"),
+            ("figure10", "png"),
+            ("curves", "png"),
+            ("identifiability", "csv"),
+            ("identifiability_figure", "png"),
+        ]
+    }
+    run(
+        "calibration_summary.py",
+        input=SimpleNamespace(
+            ingest="", calibrations=cal, validations=val, traces=str(tmp_path / "traces.parquet"), identifiability=ident
+        ),
+        output=SimpleNamespace(**out),
+        params=SimpleNamespace(methods=["ours"]),
+        log=[str(tmp_path / "summary.log")],
+    )
     table = pd.read_csv(out["identifiability"])
     assert list(table["site"]) == ["A", "B"]
     assert table.set_index("site").loc["B", "outside_law"] and not table.set_index("site").loc["A", "outside_law"]

@@ -14,6 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import run_snakemake
 
 from skidsim import ifi
 
@@ -39,8 +40,12 @@ def test_formulas_by_hand():
 
 def test_dft20_from_traces_and_table():
     v = np.arange(10.0, 81.0, 1.0)
-    traces = pd.concat([pd.DataFrame({"site": "B", "speed_kmh": v, "mu": 0.7 - 0.004 * v}),  # straight: exact
-                        pd.DataFrame({"site": "A", "speed_kmh": v, "mu": 0.6 - 0.002 * v + 1e-5 * v ** 2})])
+    traces = pd.concat(
+        [
+            pd.DataFrame({"site": "B", "speed_kmh": v, "mu": 0.7 - 0.004 * v}),  # straight: exact
+            pd.DataFrame({"site": "A", "speed_kmh": v, "mu": 0.6 - 0.002 * v + 1e-5 * v**2}),
+        ]
+    )
     d = ifi.dft20_of_traces(traces, window_kmh=5.0)
     assert d["B"] == pytest.approx(0.62, abs=1e-12)
     # local linear fit of a parabola within +-5 km/h: bias curvature x w^2 / 6 ... here 1e-5 x (sum of squares mean)
@@ -61,12 +66,29 @@ def validation_table():
     params = {"S1": (0.6, 1.0), "S2": (0.5, 0.6)}  # DFT20, MPD
     for site, (d20, mpd) in params.items():
         sp = 14.2 + 89.7 * mpd
-        for v, kind in [(20, "calibration"), (30, "validation"), (40, "calibration"), (50, "validation"),
-                        (60, "calibration"), (70, "validation")]:
+        for v, kind in [
+            (20, "calibration"),
+            (30, "validation"),
+            (40, "calibration"),
+            (50, "validation"),
+            (60, "calibration"),
+            (70, "validation"),
+        ]:
             meas = d20 * np.exp((20 - v) / sp) + (0.02 if site == "S2" else 0.0)
-            rows.append({"site": site, "method": "ours", "speed_kmh": float(v), "kind": kind,
-                         "sn_sim": meas - 0.01, "mu_measured": meas, "err": -0.01, "rel_err": -0.01 / meas,
-                         "n_steps": 10, "wall_s": 1.0})
+            rows.append(
+                {
+                    "site": site,
+                    "method": "ours",
+                    "speed_kmh": float(v),
+                    "kind": kind,
+                    "sn_sim": meas - 0.01,
+                    "mu_measured": meas,
+                    "err": -0.01,
+                    "rel_err": -0.01 / meas,
+                    "n_steps": 10,
+                    "wall_s": 1.0,
+                }
+            )
     return pd.DataFrame(rows), params
 
 
@@ -81,11 +103,18 @@ def test_model_rows_and_side_by_side_statistics():
     both = pd.concat([vt[rows.columns], rows], ignore_index=True)
     stats = ifi.comparison_statistics(both, [30, 50, 70])
     assert list(stats["speed_kmh"]) == ["all", "30", "50", "70"]
-    assert list(stats.columns) == ["speed_kmh", "n", "ours_rmse", "ours_r2", "piarc_ifi_rmse", "piarc_ifi_r2",
-                                   "best_model"]
+    assert list(stats.columns) == [
+        "speed_kmh",
+        "n",
+        "ours_rmse",
+        "ours_r2",
+        "piarc_ifi_rmse",
+        "piarc_ifi_r2",
+        "best_model",
+    ]
     # FE: error -0.01 at all 6 validation points; IFI: 0 at 3, -0.02 at 3 -> RMSE sqrt(0.0002) = 0.014142
     assert stats["ours_rmse"].iloc[0] == pytest.approx(0.01)
-    assert stats["piarc_ifi_rmse"].iloc[0] == pytest.approx(np.sqrt(0.5 * 0.02 ** 2))
+    assert stats["piarc_ifi_rmse"].iloc[0] == pytest.approx(np.sqrt(0.5 * 0.02**2))
     assert stats["n"].iloc[0] == 6 and list(stats["best_model"]) == ["ours"] * 4
     assert ifi.wins(stats) == []
     # make the FE law worse at 70 km/h only: the one-line model wins there, and it is said
@@ -116,34 +145,50 @@ def test_rule_scripts_on_a_tiny_results_set(tmp_path):
     p.write_text(json.dumps({"site": "S3", "mpd_mm": None}))
     mpd_paths.append(str(p))
     v = np.arange(10.0, 81.0, 2.0)
-    traces = pd.concat([pd.DataFrame({"site": s, "speed_kmh": v, "mu": d20 - 0.003 * (v - 20)})
-                        for s, (d20, _) in {**params, "S3": (0.45, None)}.items()])
+    traces = pd.concat(
+        [
+            pd.DataFrame({"site": s, "speed_kmh": v, "mu": d20 - 0.003 * (v - 20)})
+            for s, (d20, _) in {**params, "S3": (0.45, None)}.items()
+        ]
+    )
     (res / "ingest").mkdir()
     traces.to_parquet(res / "ingest" / "dft_traces.parquet")
     out = res / "ifi" / "ifi.csv"
-    _run_script("ifi.py", input=SimpleNamespace(mpd=mpd_paths, traces=str(res / "ingest" / "dft_traces.parquet")),
-                output=SimpleNamespace(ifi=str(out)), params=SimpleNamespace(smooth_window_kmh=5.0),
-                log=[str(tmp_path / "logs" / "ifi.log")])
+    _run_script(
+        "ifi.py",
+        input=SimpleNamespace(mpd=mpd_paths, traces=str(res / "ingest" / "dft_traces.parquet")),
+        output=SimpleNamespace(ifi=str(out)),
+        params=SimpleNamespace(smooth_window_kmh=5.0),
+        log=[str(tmp_path / "logs" / "ifi.log")],
+    )
     table = pd.read_csv(out)
     assert list(table["site"]) == ["S1", "S2", "S3"]
     np.testing.assert_allclose(table["dft20"], [0.6, 0.5, 0.45], atol=1e-12)  # straight traces: exact at 20 km/h
-    np.testing.assert_allclose(table["f60"][:2], [0.081 + 0.732 * 0.6 * np.exp(-40 / 103.9),
-                                                  0.081 + 0.732 * 0.5 * np.exp(-40 / (14.2 + 89.7 * 0.6))])
+    np.testing.assert_allclose(
+        table["f60"][:2],
+        [0.081 + 0.732 * 0.6 * np.exp(-40 / 103.9), 0.081 + 0.732 * 0.5 * np.exp(-40 / (14.2 + 89.7 * 0.6))],
+    )
     assert np.isnan(table["f60"][2])
     assert "IFI not available for 1 site(s) without an MPD: S3" in (tmp_path / "logs" / "ifi.log").read_text()
     # the comparison rule on the IFI of S1, S2 and the validation table
     (res / "calibration").mkdir()
     vt.to_parquet(res / "calibration" / "validation.parquet")
     pd.read_csv(out).iloc[:2].to_csv(out, index=False)
-    outs = SimpleNamespace(table=str(res / "ifi" / "validation.csv"), rows=str(res / "ifi" / "rows.parquet"),
-                           figure=str(res / "ifi" / "ifi_vs_fe.png"))
-    _run_script("ifi_validation.py", input=SimpleNamespace(ifi=str(out), validation=str(res / "calibration" /
-                                                                                       "validation.parquet")),
-                output=outs, params=SimpleNamespace(validation_speeds=[30, 50, 70]),
-                log=[str(tmp_path / "logs" / "ifi_validation.log")])
+    outs = SimpleNamespace(
+        table=str(res / "ifi" / "validation.csv"),
+        rows=str(res / "ifi" / "rows.parquet"),
+        figure=str(res / "ifi" / "ifi_vs_fe.png"),
+    )
+    _run_script(
+        "ifi_validation.py",
+        input=SimpleNamespace(ifi=str(out), validation=str(res / "calibration" / "validation.parquet")),
+        output=outs,
+        params=SimpleNamespace(validation_speeds=[30, 50, 70]),
+        log=[str(tmp_path / "logs" / "ifi_validation.log")],
+    )
     stats = pd.read_csv(outs.table)
     assert stats["ours_rmse"].iloc[0] == pytest.approx(0.01)
-    assert stats["piarc_ifi_rmse"].iloc[0] == pytest.approx(np.sqrt(0.5 * 0.02 ** 2))
+    assert stats["piarc_ifi_rmse"].iloc[0] == pytest.approx(np.sqrt(0.5 * 0.02**2))
     assert Path(outs.figure).stat().st_size > 10_000
     assert "higher RMSE than every FE-calibrated method" in (tmp_path / "logs" / "ifi_validation.log").read_text()
 
@@ -152,16 +197,17 @@ def test_ifi_rules_are_default_targets(tmp_path):
     """A dry run of the default target on a 3-site campaign schedules ifi and ifi_validation once each."""
     camp = tmp_path / "camp"
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    subprocess.run([sys.executable, "-m", "skidsim.cli", "synth", str(camp), "--sites", "3", "--shape", "40", "60"],
-                   check=True, capture_output=True, env=env)
-    cmd = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "--directory", str(tmp_path),
-           "--configfile", str(ROOT / "config" / "config.yaml"), "--cores", "1", "-n", "--config",
-           f"campaign={camp}"]
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp_path)
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    subprocess.run(
+        [sys.executable, "-m", "skidsim.cli", "synth", str(camp), "--sites", "3", "--shape", "40", "60"],
+        check=True,
+        capture_output=True,
+        env=env,
+    )
+    r = run_snakemake("-n", "--config", f"campaign={camp}", workdir=tmp_path, env=env)
     text = r.stdout + r.stderr
-    counts = {ln.split()[0]: ln.split()[1] for ln in text.splitlines() if len(ln.split()) == 2
-              and ln.split()[1].isdigit()}
+    counts = {
+        ln.split()[0]: ln.split()[1] for ln in text.splitlines() if len(ln.split()) == 2 and ln.split()[1].isdigit()
+    }
     assert counts.get("ifi") == "1" and counts.get("ifi_validation") == "1", counts
 
 
@@ -197,21 +243,36 @@ def test_calibration_summary_puts_the_ifi_model_beside_fe_methods(tmp_path):
     table.to_csv(tmp_path / "ifi.csv", index=False)
     stats = {}
     for label, extra in (("plain", {}), ("ifi", {"ifi": str(tmp_path / "ifi.csv")})):
-        out = {k: str(tmp_path / label / f"{k}.{e}") for k, e in [("table2", "csv"), ("comparison", "csv"),
-               ("stats", "csv"), ("validation", "parquet"), ("params", "parquet"), ("figure10", "png"),
-               ("curves", "png")]}
-        _run_script("calibration_summary.py",
-                    input=SimpleNamespace(ingest="", calibrations=cal, validations=val,
-                                          traces=str(tmp_path / "traces.parquet"), **extra),
-                    output=SimpleNamespace(**out), params=SimpleNamespace(methods=["ours"]),
-                    log=[str(tmp_path / label / "log.txt")])
+        out = {
+            k: str(tmp_path / label / f"{k}.{e}")
+            for k, e in [
+                ("table2", "csv"),
+                ("comparison", "csv"),
+                ("stats", "csv"),
+                ("validation", "parquet"),
+                ("params", "parquet"),
+                ("figure10", "png"),
+                ("curves", "png"),
+            ]
+        }
+        _run_script(
+            "calibration_summary.py",
+            input=SimpleNamespace(
+                ingest="", calibrations=cal, validations=val, traces=str(tmp_path / "traces.parquet"), **extra
+            ),
+            output=SimpleNamespace(**out),
+            params=SimpleNamespace(methods=["ours"]),
+            log=[str(tmp_path / label / "log.txt")],
+        )
         stats[label] = pd.read_csv(out["stats"])
     plain, with_ifi = stats["plain"], stats["ifi"]
     assert list(plain["method"]) == ["ours", "ours"]
     assert list(with_ifi["method"]) == ["ours", "ours", "piarc_ifi", "piarc_ifi"]
     pd.testing.assert_frame_equal(with_ifi.iloc[:2], plain)
-    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "ifi" / "validation.parquet"),
-                                  pd.read_parquet(tmp_path / "plain" / "validation.parquet"))
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(tmp_path / "ifi" / "validation.parquet"),
+        pd.read_parquet(tmp_path / "plain" / "validation.parquet"),
+    )
     model = ifi.model_validation_rows(table, vt)
     side = ifi.comparison_statistics(pd.concat([vt[model.columns], model]), [30, 50, 70])
     row = with_ifi[(with_ifi["method"] == "piarc_ifi") & (with_ifi["kind"] == "validation")].iloc[0]

@@ -42,19 +42,36 @@ TIMING = {"overhead_s", "wall_s", "fe_wall_s", "wall_s_run", "cached", "n_cache_
 def campaign(tmp_path_factory):
     root = tmp_path_factory.mktemp("resume")
     out = root / "camp"
-    assert skidsim(["synth", str(out), "--sites", "1", "--shape", "300", "600", "--spacing-mm", "0.2",
-                    "--seed", "5"]) == 0
+    assert (
+        skidsim(["synth", str(out), "--sites", "1", "--shape", "300", "600", "--spacing-mm", "0.2", "--seed", "5"]) == 0
+    )
     (root / "tiny.yaml").write_text(TINY)
     return out
 
 
 def launch_cmd(workdir: Path, campaign: Path, wrapper: bool = True) -> list[str]:
     front = [sys.executable, "-m", "skidsim.launch"] if wrapper else [sys.executable, "-m", "snakemake"]
-    return front + ["-s", str(ROOT / "Snakefile"), "--directory", str(workdir), "--configfile",
-                    str(ROOT / "config" / "config.yaml"), str(campaign.parent / "tiny.yaml"), "--cores", "1",
-                    # no 10 s wait at exit (the default profile's job-rate timespan)
-                    "--max-jobs-per-timespan", "100/1s", "--config", f"campaign={campaign}", "--"] + [
-        f"results/sites/{s}/calibration_ours.json" for s in SITES]
+    return (
+        front
+        + [
+            "-s",
+            str(ROOT / "Snakefile"),
+            "--directory",
+            str(workdir),
+            "--configfile",
+            str(ROOT / "config" / "config.yaml"),
+            str(campaign.parent / "tiny.yaml"),
+            "--cores",
+            "1",
+            # no 10 s wait at exit (the default profile's job-rate timespan)
+            "--max-jobs-per-timespan",
+            "100/1s",
+            "--config",
+            f"campaign={campaign}",
+            "--",
+        ]
+        + [f"results/sites/{s}/calibration_ours.json" for s in SITES]
+    )
 
 
 ENV = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
@@ -83,8 +100,9 @@ def fe_runs_logged(workdir: Path, seen: dict[str, str] | None = None) -> tuple[i
 
 def start_and_stop_when(cmd, workdir: Path, condition, sig: int, group: bool, timeout_s: float = 300):
     """Start ``cmd``; when ``condition()`` holds send ``sig`` (to its process group when ``group``)."""
-    p = subprocess.Popen(cmd, env=ENV, cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         process_group=0)
+    p = subprocess.Popen(
+        cmd, env=ENV, cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, process_group=0
+    )
     t0 = time.monotonic()
     while not condition():
         assert p.poll() is None, "the run ended before it could be interrupted:\n" + p.communicate()[1][-3000:]
@@ -121,8 +139,9 @@ def test_interrupt_then_kill9_then_resume(campaign, tmp_path):
     wd = tmp_path / "run"
     wd.mkdir()
     # 1. Ctrl-C on the wrapper once at least one FE run is cached and a calibration is still running
-    rc, text = start_and_stop_when(launch_cmd(wd, campaign), wd, lambda: 1 <= cache_rows(wd), signal.SIGINT,
-                                   group=False)
+    rc, text = start_and_stop_when(
+        launch_cmd(wd, campaign), wd, lambda: 1 <= cache_rows(wd), signal.SIGINT, group=False
+    )
     assert rc == 130, text[-4000:]
     assert "skidsim: stopped on request (SIGINT)" in text and "to resume" in text
     assert "Traceback" not in text
@@ -131,8 +150,9 @@ def test_interrupt_then_kill9_then_resume(campaign, tmp_path):
 
     # 2. kill -9 of a plain snakemake and its jobs (a crash) during the next FE runs: lock and incomplete marks
     before = cache_rows(wd)
-    rc, text = start_and_stop_when(launch_cmd(wd, campaign, wrapper=False), wd,
-                                   lambda: cache_rows(wd) > before, signal.SIGKILL, group=True)
+    rc, text = start_and_stop_when(
+        launch_cmd(wd, campaign, wrapper=False), wd, lambda: cache_rows(wd) > before, signal.SIGKILL, group=True
+    )
     assert rc == -signal.SIGKILL
     assert any((wd / ".snakemake" / "locks").iterdir())  # what made a plain rerun stop with a lock message
     done_2, snap = fe_runs_logged(wd, snap)
@@ -150,7 +170,7 @@ def test_interrupt_then_kill9_then_resume(campaign, tmp_path):
         assert calibration(wd, s) == calibration(ref, s)
 
 
-FAKE_SNAKEMAKE = r'''
+FAKE_SNAKEMAKE = r"""
 import pathlib, signal, sys, time
 log = pathlib.Path(sys.argv[1])
 args = sys.argv[2:]
@@ -168,17 +188,25 @@ signal.signal(signal.SIGINT, stop)
 pathlib.Path("started").write_text("1")
 time.sleep(60)
 sys.exit(0)
-'''
+"""
 
 
 def fake_launch(tmp_path: Path, *args: str) -> subprocess.Popen:
     """``skidsim.launch`` in ``tmp_path`` with a stand-in for Snakemake that records its arguments and signals."""
     (tmp_path / "fake.py").write_text(FAKE_SNAKEMAKE)
-    code = ("import sys; from skidsim.launch import main; "
-            f"sys.exit(main(sys.argv[1:], snakemake=[sys.executable, {str(tmp_path / 'fake.py')!r}, "
-            f"{str(tmp_path / 'calls.txt')!r}]))")
-    return subprocess.Popen([sys.executable, "-c", code, *args], cwd=tmp_path, env=ENV, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    code = (
+        "import sys; from skidsim.launch import main; "
+        f"sys.exit(main(sys.argv[1:], snakemake=[sys.executable, {str(tmp_path / 'fake.py')!r}, "
+        f"{str(tmp_path / 'calls.txt')!r}]))"
+    )
+    return subprocess.Popen(
+        [sys.executable, "-c", code, *args],
+        cwd=tmp_path,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 @pytest.mark.parametrize("sig,status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
@@ -192,8 +220,10 @@ def test_launch_stops_snakemake_on_sigterm_and_sigint(tmp_path, sig, status):
     _, err = p.communicate(timeout=30)
     assert p.returncode == status
     lines = err.strip().splitlines()
-    assert lines == [f"skidsim: stopped on request ({sig.name}); run the same command again (make reproduce) to "
-                     "resume: finished jobs and FE runs are kept"]
+    assert lines == [
+        f"skidsim: stopped on request ({sig.name}); run the same command again (make reproduce) to "
+        "resume: finished jobs and FE runs are kept"
+    ]
     calls = (tmp_path / "calls.txt").read_text().splitlines()
     assert calls == ["--rerun-incomplete --cores 2", "got SIGINT"]  # Snakemake gets its orderly-stop signal once
 

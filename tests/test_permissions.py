@@ -8,10 +8,11 @@ import stat
 import numpy as np
 import pytest
 
+from skidsim.atomic import current_umask, honour_umask
 from skidsim.exports import write_inp, write_stl
 from skidsim.friction import ExponentialDecay
 from skidsim.reconstruct import Heightfield
-from skidsim.runlog import current_umask, honour_umask, write_json
+from skidsim.runlog import write_json
 from skidsim.slidermesh import SliderMesh
 
 
@@ -35,8 +36,9 @@ def mode(path) -> int:
 def patch() -> Heightfield:
     x = np.arange(61) * 0.5e-3  # 30 x 25 mm: room for the 20 x 16 mm slider footprint
     X, Y = np.meshgrid(x, x[:51])
-    return Heightfield(0.3e-3 * np.sin(2 * np.pi * X / 0.006) * np.cos(2 * np.pi * Y / 0.005), 0.5e-3, 0.5e-3,
-                       (0.0, 0.0), name="p")
+    return Heightfield(
+        0.3e-3 * np.sin(2 * np.pi * X / 0.006) * np.cos(2 * np.pi * Y / 0.005), 0.5e-3, 0.5e-3, (0.0, 0.0), name="p"
+    )
 
 
 @pytest.mark.parametrize("mask,expected", [(0o022, 0o644), (0o002, 0o664), (0o077, 0o600)])

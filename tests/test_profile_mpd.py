@@ -14,9 +14,11 @@ from skidsim.texture.mpd import MPDOptions, find_plates, mean_profile_depth, pro
 # captif-slp 0.22 calls DataFrame.set_index(inplace=True), deprecated in pandas 3.1
 pytestmark = pytest.mark.filterwarnings("ignore:The inplace keyword:DeprecationWarning")
 
-CAPTIF_HEADER = ("Road Name\tCAPTIF\t\nRef Station\t0\t\nStart Pos (m)\t0\t\nEnd Pos (m)\t0\t\n"
-                 "Direction\tincreasing\t\nWheel Path\tLeft\t\nDate\t11/10/2021\t\nFile No.\t0\t\n"
-                 "Current Pos\t0.0\t\n*****DATA*****\t\t\nData Point No:\tDistance (mm)\tDepth (mm)\n")
+CAPTIF_HEADER = (
+    "Road Name\tCAPTIF\t\nRef Station\t0\t\nStart Pos (m)\t0\t\nEnd Pos (m)\t0\t\n"
+    "Direction\tincreasing\t\nWheel Path\tLeft\t\nDate\t11/10/2021\t\nFile No.\t0\t\n"
+    "Current Pos\t0.0\t\n*****DATA*****\t\t\nData Point No:\tDistance (mm)\tDepth (mm)\n"
+)
 
 
 def instrument_profile(seed, length_mm=1000.0, dx=0.0375, plates=True):
@@ -32,10 +34,10 @@ def instrument_profile(seed, length_mm=1000.0, dx=0.0375, plates=True):
     z += 0.002 * x - 3.0 + rng.normal(0, 0.02, len(x))
     for _ in range(8):
         i = rng.integers(0, len(x) - 300)
-        z[i:i + rng.integers(5, 250)] = np.nan
+        z[i : i + rng.integers(5, 250)] = np.nan
     z[:20] = np.nan
     for i in rng.integers(100, len(x) - 100, 12):  # spikes 0.4 to 1.1 mm wide: they survive the bin means
-        z[i:i + rng.integers(10, 30)] += rng.choice([-1, 1]) * rng.uniform(3, 8)
+        z[i : i + rng.integers(10, 30)] += rng.choice([-1, 1]) * rng.uniform(3, 8)
     if plates:
         z[x < 19.0] = 45 + 0.1 * rng.normal(size=(x < 19).sum())
         z[x > length_mm - 25] = 46 + 0.1 * rng.normal(size=(x > length_mm - 25).sum())
@@ -44,8 +46,9 @@ def instrument_profile(seed, length_mm=1000.0, dx=0.0375, plates=True):
 
 
 def write_captif(path, x, z):
-    body = "".join(f"{i + 1}.000\t{xi:.3f}\t{'NaN' if np.isnan(zi) else f'{zi:.3f}'}\n"
-                   for i, (xi, zi) in enumerate(zip(x, z)))
+    body = "".join(
+        f"{i + 1}.000\t{xi:.3f}\t{'NaN' if np.isnan(zi) else f'{zi:.3f}'}\n" for i, (xi, zi) in enumerate(zip(x, z))
+    )
     path.write_bytes((CAPTIF_HEADER + body).replace("\n", "\r\n").encode())
     return path
 
@@ -57,20 +60,21 @@ def profiles():
 
 # ---------------------------------------------------------------------------------------------- reading text
 
+
 def test_reader_finds_block_after_any_header_and_sniffs_delimiters(tmp_path):
     x = np.arange(8) * 0.25
     z = np.array([0.1, np.nan, -0.2, 0.3, np.nan, np.nan, 0.5, -0.125])
     cells = ["" if np.isnan(v) else f"{v:g}" for v in z]
     cells[4] = "---"  # non-numeric cell: a dropout
     files = {
-        "tab_crlf.dat": CAPTIF_HEADER.replace("\n", "\r\n") + "".join(
-            f"{i + 1}\t{xi:g}\t{c or 'NaN'}\r\n" for i, (xi, c) in enumerate(zip(x, cells))),
-        "comma.csv": '# exported 2026-11-25\n# sensor LS-40\n\n"x_mm","height_mm"\n' + "".join(
-            f'"{xi:g}","{c}"\n' for xi, c in zip(x, cells)),
-        "semicolon.txt": "Profil;Test\nAbstand [mm];Hoehe [mm]\n" + "".join(
-            f"{xi:g};{c}\n".replace(".", ",") for xi, c in zip(x, cells)),
-        "spaces.txt": "  profile exported without names\n" + "".join(
-            f"  {xi:8.3f}   {c or 'nan'}\n" for xi, c in zip(x, cells)),
+        "tab_crlf.dat": CAPTIF_HEADER.replace("\n", "\r\n")
+        + "".join(f"{i + 1}\t{xi:g}\t{c or 'NaN'}\r\n" for i, (xi, c) in enumerate(zip(x, cells))),
+        "comma.csv": '# exported 2026-11-25\n# sensor LS-40\n\n"x_mm","height_mm"\n'
+        + "".join(f'"{xi:g}","{c}"\n' for xi, c in zip(x, cells)),
+        "semicolon.txt": "Profil;Test\nAbstand [mm];Hoehe [mm]\n"
+        + "".join(f"{xi:g};{c}\n".replace(".", ",") for xi, c in zip(x, cells)),
+        "spaces.txt": "  profile exported without names\n"
+        + "".join(f"  {xi:8.3f}   {c or 'nan'}\n" for xi, c in zip(x, cells)),
     }
     for name, text in files.items():
         p = tmp_path / name
@@ -98,8 +102,11 @@ def test_reader_errors_name_file_line_and_expectation(tmp_path):
         read_profile(p)
     p = tmp_path / "backwards.csv"
     p.write_text("distance,height\n0,1\n1,2\n2,3\n1.5,4\n3,5\n4,6\n")
-    with pytest.raises(ProfileFormatError, match=r"backwards.csv: line 5, column 'distance': expected distances "
-                                                 r"increasing strictly \(previous 2 mm\), got 1.5"):
+    with pytest.raises(
+        ProfileFormatError,
+        match=r"backwards.csv: line 5, column 'distance': expected distances "
+        r"increasing strictly \(previous 2 mm\), got 1.5",
+    ):
         read_profile(p)
     p = tmp_path / "baddist.csv"
     p.write_text("distance,height\n0,1\n1,2\n2,3\n3,4\n4,5\nfive,6\n")
@@ -114,6 +121,7 @@ def test_reader_errors_name_file_line_and_expectation(tmp_path):
 
 
 # ------------------------------------------------------------------------------------- the MPD procedure
+
 
 def test_plates_found_two_mm_inside_their_edges():
     x = np.arange(0, 300, 0.25)
@@ -152,6 +160,7 @@ def test_segment_length_and_dropout_limit_options(profiles):
 
 # ----------------------------------------------------------------------------------- captif-slp agreement
 
+
 def _captif(x, z, **kw):
     captif_slp = pytest.importorskip("captif_slp")
     import pandas as pd
@@ -187,8 +196,10 @@ def test_cli_agrees_with_captif_slp_reading_its_own_file_format(profiles, tmp_pa
     assert main(["mpd", str(path), "--detect-plates", "-o", str(out_csv)]) == 0
     line = capsys.readouterr().out.splitlines()[0]
     n_invalid = 9 - int(ref["valid_segments"])
-    assert line.startswith(f"MPD {ref['mpd']:.4f} mm, SD {ref['stdev']:.4f} mm, {int(ref['valid_segments'])} valid "
-                           f"segments, {n_invalid} invalid segment")
+    assert line.startswith(
+        f"MPD {ref['mpd']:.4f} mm, SD {ref['stdev']:.4f} mm, {int(ref['valid_segments'])} valid "
+        f"segments, {n_invalid} invalid segment"
+    )
     import pandas as pd
 
     seg = pd.read_csv(out_csv)

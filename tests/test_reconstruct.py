@@ -6,8 +6,15 @@ import numpy as np
 import pytest
 
 from skidsim.errors import InputError
-from skidsim.reconstruct import (Heightfield, area_weights, gaussian_sigma_mm, pavement_strip, strip_length_mm,
-                                 remove_mean_plane, resample_area)
+from skidsim.reconstruct import (
+    Heightfield,
+    area_weights,
+    gaussian_sigma_mm,
+    pavement_strip,
+    remove_mean_plane,
+    resample_area,
+    strip_length_mm,
+)
 from skidsim.surface import Surface
 
 
@@ -72,8 +79,9 @@ def test_tilted_plane_normals_and_outside_extension():
     np.testing.assert_allclose(n, np.broadcast_to(expect, n.shape), atol=1e-13)
     # Outside: constant extension across the edge passed, slope across it 0, slope along it kept.
     z, zx, zy = hf.evaluate(np.array([-0.003, 0.014, 0.004]), np.array([0.003, 0.003, 0.009]))
-    np.testing.assert_allclose(z, [0.002 + c * 0.003, 0.002 + b * 0.010 + c * 0.003, 0.002 + b * 0.004 + c * 0.006],
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        z, [0.002 + c * 0.003, 0.002 + b * 0.010 + c * 0.003, 0.002 + b * 0.004 + c * 0.006], atol=1e-15
+    )
     np.testing.assert_allclose(zx, [0.0, 0.0, b], atol=1e-13)
     np.testing.assert_allclose(zy, [c, c, 0.0], atol=1e-13)
 
@@ -181,15 +189,17 @@ def test_pavement_strip_geometry_levelling_and_transfer():
     gain = 0.5 * np.sinc(hmm / lam)
     x_scan = hf.meta["x0_mm"] + hmm * np.arange(hf.shape[1])
     row = hf.z_m[40] * 1e3
-    B = np.column_stack([np.sin(2 * np.pi * x_scan / lam), np.cos(2 * np.pi * x_scan / lam), np.ones_like(x_scan),
-                         x_scan])
+    B = np.column_stack(
+        [np.sin(2 * np.pi * x_scan / lam), np.cos(2 * np.pi * x_scan / lam), np.ones_like(x_scan), x_scan]
+    )
     coef = np.linalg.lstsq(B, row, rcond=None)[0]
     assert np.isclose(np.hypot(coef[0], coef[1]), A * gain, rtol=0.01)
     # No smoothing: long-wave content passes untouched (box average only).
     hf2 = pavement_strip(s, smoothing=None, x0_mm=1.0, y0_mm=2.0)
     x_scan = 1.0 + hmm * np.arange(hf2.shape[1])
-    B = np.column_stack([np.sin(2 * np.pi * x_scan / lam), np.cos(2 * np.pi * x_scan / lam), np.ones_like(x_scan),
-                         x_scan])
+    B = np.column_stack(
+        [np.sin(2 * np.pi * x_scan / lam), np.cos(2 * np.pi * x_scan / lam), np.ones_like(x_scan), x_scan]
+    )
     coef = np.linalg.lstsq(B, hf2.z_m[10] * 1e3, rcond=None)[0]
     assert np.isclose(np.hypot(coef[0], coef[1]), A * np.sinc(hmm / lam), rtol=0.01)
     # Levelled: mean zero, no tilt left.
@@ -200,7 +210,7 @@ def test_pavement_strip_geometry_levelling_and_transfer():
 def test_gaussian_sigma_iso():
     assert np.isclose(gaussian_sigma_mm(1.0), np.sqrt(np.log(2) / np.pi) / np.sqrt(2 * np.pi))
     # transmission exp(-pi (alpha lc / lambda)^2) = 0.5 at lambda = lc  <=> exp(-2 pi^2 sigma^2 / lc^2) = 0.5
-    assert np.isclose(np.exp(-2 * np.pi ** 2 * gaussian_sigma_mm(3.0) ** 2 / 9.0), 0.5)
+    assert np.isclose(np.exp(-2 * np.pi**2 * gaussian_sigma_mm(3.0) ** 2 / 9.0), 0.5)
 
 
 def test_pavement_strip_bad_input():
@@ -222,8 +232,11 @@ def test_scan_shorter_than_strip_early_error_or_auto_length():
     or with length_mm='auto' a strip of the scan's whole length."""
     s = _scan(lambda X, Y: 0.2 * np.sin(2 * np.pi * X / 7.0) + 0.01 * Y, W=114.0, H=50.0, d=0.05, name="short")
     assert s.width_mm == pytest.approx(114.0)
-    with pytest.raises(InputError, match=r"short: column 'x0_mm'.*the scan is 0\.3 mm shorter than the 114\.3 mm "
-                                         r"strip: give a longer scan, or length_mm='auto'"):
+    with pytest.raises(
+        InputError,
+        match=r"short: column 'x0_mm'.*the scan is 0\.3 mm shorter than the 114\.3 mm "
+        r"strip: give a longer scan, or length_mm='auto'",
+    ):
         pavement_strip(s)
     hf = pavement_strip(s, length_mm="auto")
     assert hf.meta["length_mm"] == pytest.approx(114.0) and hf.meta["x0_mm"] == pytest.approx(0.0, abs=1e-12)
@@ -236,8 +249,9 @@ def test_scan_shorter_than_strip_early_error_or_auto_length():
 
 
 def test_npz_round_trip_and_errors(tmp_path, quad_hf):
-    hf = Heightfield(quad_hf.z_m, quad_hf.dx_m, quad_hf.dy_m, quad_hf.origin_m, -0.01, "site-A",
-                     {"x0_mm": 4.85, "nested": {"a": 1}})
+    hf = Heightfield(
+        quad_hf.z_m, quad_hf.dx_m, quad_hf.dy_m, quad_hf.origin_m, -0.01, "site-A", {"x0_mm": 4.85, "nested": {"a": 1}}
+    )
     p = hf.to_npz(tmp_path / "sub" / "pavement.npz")
     back = Heightfield.from_npz(p)
     assert np.array_equal(back.z_m, hf.z_m) and back.dx_m == hf.dx_m and back.dy_m == hf.dy_m

@@ -45,11 +45,14 @@ def independent_campaign(n_sections=12, per=3, p=30, seed=1):
 
 # ----------------------------------------------------------------------------------------------- PCA regression
 
+
 def test_all_components_table6_equals_plain_ols_with_same_standard_errors():
     rng = np.random.default_rng(3)
     n, p = 30, 7
-    X = pd.DataFrame(rng.normal(size=(n, p)) @ rng.normal(size=(p, p)) + rng.uniform(0, 5, p),
-                     columns=[f"macro_{c}" for c in NAMES[:p]])
+    X = pd.DataFrame(
+        rng.normal(size=(n, p)) @ rng.normal(size=(p, p)) + rng.uniform(0, 5, p),
+        columns=[f"macro_{c}" for c in NAMES[:p]],
+    )
     X["temperature_c"] = 15 + 3 * rng.normal(size=n)
     y = pd.Series(0.4 + X.to_numpy() @ rng.normal(scale=0.01, size=p + 1) + 0.02 * rng.normal(size=n), name="mu_s")
     fit = R.fit_pca_regression(X, y, n_components=p + 1)
@@ -110,8 +113,7 @@ def test_table5_matches_statsmodels_on_independent_pca():
 
     X, F, groups = latent_campaign(k=4, noise_x=0.3, seed=2, n_sections=9)
     rng = np.random.default_rng(7)
-    y = pd.Series(0.45 + 0.04 * F[:, 0] - 0.02 * F[:, 2] + 0.01 * rng.normal(size=len(X)), index=X.index,
-                  name="mu_s")
+    y = pd.Series(0.45 + 0.04 * F[:, 0] - 0.02 * F[:, 2] + 0.01 * rng.normal(size=len(X)), index=X.index, name="mu_s")
     fit = R.fit_pca_regression(X, y, n_components=5)
     T = PCA(n_components=5).fit_transform(StandardScaler().fit_transform(X.to_numpy()))
     ref = sm.OLS(y.to_numpy(), sm.add_constant(T)).fit()
@@ -123,8 +125,8 @@ def test_table5_matches_statsmodels_on_independent_pca():
     assert st["r2"] == pytest.approx(ref.rsquared, rel=1e-9)
     assert st["adj_r2"] == pytest.approx(ref.rsquared_adj, rel=1e-9)
     assert st["rse"] == pytest.approx(np.sqrt(ref.scale), rel=1e-9)
-    assert list(t5["stars"]) == [R._stars(p) for p in ref.pvalues]
-    assert (R._stars(0.0009), R._stars(0.009), R._stars(0.049), R._stars(0.05)) == ("***", "**", "*", "")
+    assert list(t5["stars"]) == [R.significance_stars(p) for p in ref.pvalues]
+    assert [R.significance_stars(p) for p in (0.0009, 0.009, 0.049, 0.05)] == ["***", "**", "*", ""]
     ev = np.linalg.eigvalsh(np.corrcoef(X.to_numpy().T))[::-1]
     np.testing.assert_allclose(t5["explained_variance"].to_numpy()[1:], ev[:5] / ev.sum(), rtol=1e-8)
 
@@ -132,8 +134,7 @@ def test_table5_matches_statsmodels_on_independent_pca():
 def test_retention_rules_against_their_definitions():
     X, F, groups = latent_campaign(k=4, noise_x=0.4, seed=8, n_sections=9)
     rng = np.random.default_rng(9)
-    y = pd.Series(0.45 + 0.03 * F @ rng.normal(size=4) + 0.01 * rng.normal(size=len(X)), index=X.index,
-                  name="mu_s")
+    y = pd.Series(0.45 + 0.03 * F @ rng.normal(size=4) + 0.01 * rng.normal(size=len(X)), index=X.index, name="mu_s")
     ev = np.linalg.eigvalsh(np.corrcoef(X.to_numpy().T))[::-1]
     assert R.fit_pca_regression(X, y, rule="kaiser").n_components == int(np.sum(ev > 1))
     cum = np.cumsum(ev) / ev.sum()
@@ -168,9 +169,11 @@ def test_standardiser_drops_constant_and_mostly_nan_columns_and_imputes():
 
 # ----------------------------------------------------------------------------------------------- splits
 
+
 def test_split_sites_deterministic_random_and_grouped():
-    sites = pd.DataFrame({"site": [f"S{i:02d}" for i in range(36)],
-                          "section": np.repeat([f"C{i}" for i in range(12)], 3)})
+    sites = pd.DataFrame(
+        {"site": [f"S{i:02d}" for i in range(36)], "section": np.repeat([f"C{i}" for i in range(12)], 3)}
+    )
     tr, te = R.split_sites(sites, 27, seed=4)
     assert (tr, te) == R.split_sites(sites, 27, seed=4)
     assert len(tr) == 27 and len(te) == 9 and set(tr).isdisjoint(te) and set(tr) | set(te) == set(sites["site"])
@@ -189,6 +192,7 @@ def test_split_sites_deterministic_random_and_grouped():
 
 
 # ----------------------------------------------------------------------------------------------- models
+
 
 def test_ridge_and_pls_paths_match_sklearn():
     from sklearn.cross_decomposition import PLSRegression
@@ -211,8 +215,10 @@ def test_ridge_and_pls_paths_match_sklearn():
 
 def test_cv_never_sees_the_held_out_section():
     X, groups, rng = independent_campaign(n_sections=6, p=10, seed=12)
-    Y = pd.DataFrame({"mu_s": 0.5 + 0.05 * X["micro_Sq"] + 0.01 * rng.normal(size=len(X)),
-                      "alpha": 0.4 + 0.05 * X["profile_MPD"]}, index=X.index)
+    Y = pd.DataFrame(
+        {"mu_s": 0.5 + 0.05 * X["micro_Sq"] + 0.01 * rng.normal(size=len(X)), "alpha": 0.4 + 0.05 * X["profile_MPD"]},
+        index=X.index,
+    )
     models = ("mean", "pca", "pca:study", "ridge", "lasso", "pls", "two_variable")
     base = R.cross_validated_predictions(X, Y, groups, models)
     held = groups == "E03"
@@ -239,11 +245,9 @@ def test_target_depending_only_on_section_has_no_out_of_section_skill():
     sec = np.repeat(np.arange(n_sec), per)
     idx = pd.Index([f"S{i:02d}" for i in range(n_sec * per)], name="site")
     cols = ["profile_MPD", "micro_Sq"] + [f"macro_P{j:02d}" for j in range(p - 2)]
-    X = pd.DataFrame(rng.normal(size=(n_sec, p))[sec] + 0.1 * rng.normal(size=(len(idx), p)), columns=cols,
-                     index=idx)
+    X = pd.DataFrame(rng.normal(size=(n_sec, p))[sec] + 0.1 * rng.normal(size=(len(idx), p)), columns=cols, index=idx)
     groups = pd.Series([f"E{s:02d}" for s in sec], index=idx)
-    Y = pd.DataFrame({"mu_s": 0.5 + 0.05 * rng.normal(size=n_sec)[sec] + 0.002 * rng.normal(size=len(idx))},
-                     index=idx)
+    Y = pd.DataFrame({"mu_s": 0.5 + 0.05 * rng.normal(size=n_sec)[sec] + 0.002 * rng.normal(size=len(idx))}, index=idx)
     models = ("pca", "ridge", "lasso")
     cv = R.cross_validate_models(X, Y, groups, models=models)
     assert len(cv) == 3 and np.all(cv["r2"] < 0.15), cv
@@ -254,8 +258,9 @@ def test_target_depending_only_on_section_has_no_out_of_section_skill():
 
 def test_sparse_truth_lasso_wins_and_two_variable_truth_is_competitive():
     X, groups, rng = independent_campaign(n_sections=12, p=30, seed=14)
-    Y = pd.DataFrame({"mu_s": 0.5 + 0.05 * X["macro_P03"] - 0.04 * X["macro_P17"] + 0.005 * rng.normal(size=36)},
-                     index=X.index)
+    Y = pd.DataFrame(
+        {"mu_s": 0.5 + 0.05 * X["macro_P03"] - 0.04 * X["macro_P17"] + 0.005 * rng.normal(size=36)}, index=X.index
+    )
     cv = R.cross_validate_models(X, Y, groups, models=("pca", "ridge", "lasso", "two_variable"))
     assert R.best_model(cv) == "lasso", cv
     rank = R.rank_models(cv)
@@ -263,8 +268,10 @@ def test_sparse_truth_lasso_wins_and_two_variable_truth_is_competitive():
     # a two-variable truth on correlated texture (latent structure)
     Xl, F, g = latent_campaign(k=3, noise_x=0.3, seed=15)
     rng = np.random.default_rng(16)
-    Yl = pd.DataFrame({"mu_k": 0.3 + 0.05 * Xl["profile_MPD"] + 0.02 * Xl["micro_Sq"]
-                       + 0.002 * rng.normal(size=len(Xl))}, index=Xl.index)
+    Yl = pd.DataFrame(
+        {"mu_k": 0.3 + 0.05 * Xl["profile_MPD"] + 0.02 * Xl["micro_Sq"] + 0.002 * rng.normal(size=len(Xl))},
+        index=Xl.index,
+    )
     cvl = R.cross_validate_models(Xl, Yl, g, models=("pca", "ridge", "two_variable"))
     rk = R.rank_models(cvl).set_index("model")
     assert rk.loc["two_variable", "score"] <= 1.1 * rk["score"].min() + 1e-3, rk
@@ -273,15 +280,22 @@ def test_sparse_truth_lasso_wins_and_two_variable_truth_is_competitive():
 
 # ----------------------------------------------------------------------------------------------- DFT tables
 
+
 def test_predict_dft_uses_the_law_g_and_clipping():
-    params = pd.DataFrame({"mu_s": [0.6, 0.5], "mu_k": [0.4, 0.3], "alpha": [0.2, -0.1]},
-                          index=pd.Index(["A", "B"], name="site"))
+    params = pd.DataFrame(
+        {"mu_s": [0.6, 0.5], "mu_k": [0.4, 0.3], "alpha": [0.2, -0.1]}, index=pd.Index(["A", "B"], name="site")
+    )
     d = R.predict_dft(params)
     a = d[d["site"] == "A"]
     np.testing.assert_allclose(a["mu"], ExponentialDecay(0.6, 0.4, 0.2).mu_kmh(np.array(R.DEFAULT_SPEEDS_KMH)))
     np.testing.assert_allclose(d.loc[d["site"] == "B", "mu"], 0.5)  # alpha clipped to 0: mu = mu_s
-    g = pd.DataFrame({"site": ["A"] * 6 + ["B"] * 6, "speed_kmh": list(R.DEFAULT_SPEEDS_KMH) * 2,
-                      "g": np.r_[np.full(6, 1.2), np.full(6, 0.8)]})
+    g = pd.DataFrame(
+        {
+            "site": ["A"] * 6 + ["B"] * 6,
+            "speed_kmh": list(R.DEFAULT_SPEEDS_KMH) * 2,
+            "g": np.r_[np.full(6, 1.2), np.full(6, 0.8)],
+        }
+    )
     d2 = R.predict_dft(params, g)
     np.testing.assert_allclose(d2["mu"], d["mu"] * d2["g"])
     np.testing.assert_allclose(d2.loc[d2["site"] == "B", "mu"], 0.4)
@@ -291,8 +305,9 @@ def test_predict_dft_uses_the_law_g_and_clipping():
 
 
 def test_figure11_table_and_summary():
-    pred = pd.DataFrame({"site": ["A", "B", "A", "B"], "speed_kmh": [20.0, 20.0, 60.0, 60.0],
-                         "mu": [0.54, 0.60, 0.40, 0.30]})
+    pred = pd.DataFrame(
+        {"site": ["A", "B", "A", "B"], "speed_kmh": [20.0, 20.0, 60.0, 60.0], "mu": [0.54, 0.60, 0.40, 0.30]}
+    )
     meas = pd.DataFrame({"site": ["A", "B", "A", "B"], "speed_kmh": [20, 20, 60, 60], "mu": [0.5, 0.5, 0.4, 0.4]})
     t = R.figure11_table(pred, meas)
     np.testing.assert_allclose(t["relative_error"], [0.08, 0.2, 0.0, -0.25])
@@ -300,7 +315,7 @@ def test_figure11_table_and_summary():
     s = R.figure11_summary(t)
     np.testing.assert_allclose(s["share_within_10pct"], [0.5, 0.5, 0.5])
     assert np.isnan(s["speed_kmh"].iloc[-1]) and s["n"].iloc[-1] == 4
-    assert s["rmse"].iloc[0] == pytest.approx(np.sqrt((0.04 ** 2 + 0.1 ** 2) / 2))
+    assert s["rmse"].iloc[0] == pytest.approx(np.sqrt((0.04**2 + 0.1**2) / 2))
     with pytest.raises(InputError) as e:
         R.figure11_table(pred, meas.iloc[:3])
     assert "site B at 60 km/h" in str(e.value)
@@ -308,12 +323,13 @@ def test_figure11_table_and_summary():
 
 def test_cv_dft_rows_against_hand_computation():
     X, groups, rng = independent_campaign(n_sections=4, p=5, seed=21)
-    Y = pd.DataFrame({"mu_s": rng.uniform(0.5, 0.7, 12), "mu_k": rng.uniform(0.3, 0.4, 12),
-                      "alpha": rng.uniform(0.1, 0.5, 12)}, index=X.index)
+    Y = pd.DataFrame(
+        {"mu_s": rng.uniform(0.5, 0.7, 12), "mu_k": rng.uniform(0.3, 0.4, 12), "alpha": rng.uniform(0.1, 0.5, 12)},
+        index=X.index,
+    )
     cv = R.cross_validate_models(X, Y, groups, models=("mean",), speeds_kmh=(20.0, 60.0))
     # "mean" predicts the mean of the other three sections
-    pred = pd.DataFrame({c: [Y.loc[groups != groups[s], c].mean() for s in X.index] for c in Y.columns},
-                        index=X.index)
+    pred = pd.DataFrame({c: [Y.loc[groups != groups[s], c].mean() for s in X.index] for c in Y.columns}, index=X.index)
     v = 60.0 / 3.6  # m/s
     mu_p = pred["mu_k"] + (pred["mu_s"] - pred["mu_k"]) * np.exp(-pred["alpha"] * v)
     mu_m = Y["mu_k"] + (Y["mu_s"] - Y["mu_k"]) * np.exp(-Y["alpha"] * v)
@@ -321,18 +337,27 @@ def test_cv_dft_rows_against_hand_computation():
     assert row["rmse"] == pytest.approx(np.sqrt(np.mean((mu_p - mu_m) ** 2)), rel=1e-12)
     e = pred["mu_s"] - Y["mu_s"]
     r = cv[cv["quantity"] == "mu_s"].iloc[0]
-    assert r["r2"] == pytest.approx(1 - np.sum(e ** 2) / np.sum((Y["mu_s"] - Y["mu_s"].mean()) ** 2), rel=1e-12)
+    assert r["r2"] == pytest.approx(1 - np.sum(e**2) / np.sum((Y["mu_s"] - Y["mu_s"].mean()) ** 2), rel=1e-12)
     assert R.rank_models(cv).attrs["criterion"] == "dft_rmse"
 
 
 # ----------------------------------------------------------------------------------------------- inputs
 
+
 def test_assemble_design_and_input_errors():
-    camp = pd.DataFrame({"site": ["a", "b", "c"], "section": ["E1", "E1", "C1"], "operator": ["x", "y", "z"],
-                         "temperature_c": [15.0, 16.0, 14.0], "macro_Sq": [0.3, 0.4, 0.5],
-                         "profile_MPD": [1.0, np.nan, 1.2]})
-    fr = pd.DataFrame({"site": ["c", "a", "b"], "mu_s": [0.5, 0.6, 0.7], "mu_k": [0.3, 0.3, 0.4],
-                       "alpha": [0.2, 0.3, 0.4]})
+    camp = pd.DataFrame(
+        {
+            "site": ["a", "b", "c"],
+            "section": ["E1", "E1", "C1"],
+            "operator": ["x", "y", "z"],
+            "temperature_c": [15.0, 16.0, 14.0],
+            "macro_Sq": [0.3, 0.4, 0.5],
+            "profile_MPD": [1.0, np.nan, 1.2],
+        }
+    )
+    fr = pd.DataFrame(
+        {"site": ["c", "a", "b"], "mu_s": [0.5, 0.6, 0.7], "mu_k": [0.3, 0.3, 0.4], "alpha": [0.2, 0.3, 0.4]}
+    )
     d = R.assemble_design(camp, fr)
     assert list(d.X.columns) == ["macro_Sq", "profile_MPD", "temperature_c"]
     assert list(d.Y.index) == ["a", "b", "c"] and d.Y.loc["c", "mu_s"] == 0.5
@@ -358,20 +383,25 @@ def test_assemble_design_and_input_errors():
 
 # ----------------------------------------------------------------------------------------------- plots
 
+
 def test_plots_write_pngs(tmp_path):
     from skidsim.plotting import regression as P
 
     X, F, groups = latent_campaign(k=3, noise_x=0.3, seed=31, n_sections=6)
-    Y = pd.DataFrame({"mu_s": 0.5 + 0.03 * F[:, 0], "mu_k": 0.35 + 0.02 * F[:, 1], "alpha": 0.4 + 0.05 * F[:, 2]},
-                     index=X.index)
+    Y = pd.DataFrame(
+        {"mu_s": 0.5 + 0.03 * F[:, 0], "mu_k": 0.35 + 0.02 * F[:, 1], "alpha": 0.4 + 0.05 * F[:, 2]}, index=X.index
+    )
     fits = R.fit_pca_tables(X, Y, rule="kaiser")
     tr = X.index[:12]
     te = X.index[12:]
     pred = R.predict_parameters("pca", X.loc[tr], Y.loc[tr], X.loc[te])
     tab = R.figure11_table(R.predict_dft(pred), R.predict_dft(Y.loc[te]))
     cv = R.cross_validate_models(X, Y, groups, models=("mean", "two_variable"))
-    for fn, arg, name in ((P.plot_figure11, tab, "f11.png"), (P.plot_cv_comparison, cv, "cv.png"),
-                          (P.plot_table6, R.table6(fits), "t6.png")):
+    for fn, arg, name in (
+        (P.plot_figure11, tab, "f11.png"),
+        (P.plot_cv_comparison, cv, "cv.png"),
+        (P.plot_table6, R.table6(fits), "t6.png"),
+    ):
         out = fn(arg, tmp_path / name)
         assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cv.png", "f11.png", "t6.png"]
@@ -382,25 +412,52 @@ def test_plots_write_pngs(tmp_path):
 def test_run_analysis_and_write_analysis(tmp_path):
     X, F, groups = latent_campaign(k=3, noise_x=0.3, seed=41, n_sections=8)
     rng = np.random.default_rng(42)
-    Y = pd.DataFrame({"mu_s": 0.5 + 0.03 * F[:, 0] + 0.005 * rng.normal(size=24),
-                      "mu_k": 0.35 + 0.02 * F[:, 1] + 0.005 * rng.normal(size=24),
-                      "alpha": 0.4 + 0.05 * F[:, 2] + 0.01 * rng.normal(size=24)}, index=X.index)
+    Y = pd.DataFrame(
+        {
+            "mu_s": 0.5 + 0.03 * F[:, 0] + 0.005 * rng.normal(size=24),
+            "mu_k": 0.35 + 0.02 * F[:, 1] + 0.005 * rng.normal(size=24),
+            "alpha": 0.4 + 0.05 * F[:, 2] + 0.01 * rng.normal(size=24),
+        },
+        index=X.index,
+    )
     d = R.Design(X=X, Y=Y, groups=groups)
-    a = R.run_analysis(d, n_train=18, seed=3, grouped_by="section", models=("mean", "pca", "two_variable"),
-                       figure11_models=("best", "pca:study"))
+    opts = R.RegressionOptions(
+        seed=3, grouped_by="section", models=("mean", "pca", "two_variable"), figure11_models=("best", "pca:study")
+    )
+    a = R.run_analysis(d, opts, n_train=18)
     assert len(a.train_ids) == 18 and set(a.test_ids) == set(X.index) - set(a.train_ids)
     assert set(a.table5["rule"]) == {"cv", "study"} and set(a.table6["target"]) == {"mu_s", "mu_k", "alpha"}
     assert a.best == a.ranking["model"].iloc[0] and a.best != "mean"
     assert set(a.test_parameters["model"]) == {a.best, "pca:study"}
     tp = a.test_parameters[a.test_parameters["model"] == a.best].set_index("site")
-    direct = R.predict_parameters(a.best, X.loc[a.train_ids], Y.loc[a.train_ids], X.loc[a.test_ids],
-                                  groups_train=groups.loc[a.train_ids].to_numpy())
+    direct = R.predict_parameters(
+        a.best,
+        X.loc[a.train_ids],
+        Y.loc[a.train_ids],
+        X.loc[a.test_ids],
+        groups_train=groups.loc[a.train_ids].to_numpy(),
+    )
     np.testing.assert_allclose(tp.loc[a.test_ids, ["mu_s", "mu_k", "alpha"]].to_numpy(), direct.to_numpy())
     paths = R.write_analysis(a, tmp_path / "reg")
     assert (tmp_path / "reg" / "best_model.txt").read_text().strip() == a.best
     back = pd.read_csv(paths["table6"])
     np.testing.assert_allclose(back["coefficient"], a.table6["coefficient"])
-    assert not list((tmp_path / "reg").glob("*.tmp"))
+    written = {
+        "split",
+        "table5",
+        "table5_statistics",
+        "table6",
+        "cv_predictions",
+        "cv_table",
+        "cv_ranking",
+        "test_parameters",
+        "prediction_skill",
+    }
+    assert set(paths) == written | {"best_model"}
+    # atomic writes: only the final files, no temporary sibling left behind
+    assert sorted(p.name for p in (tmp_path / "reg").iterdir()) == sorted(
+        [f"{n}.csv" for n in written] + ["best_model.txt"]
+    )
 
 
 def test_cv_threads_give_identical_predictions():
@@ -417,8 +474,9 @@ def test_cv_threads_give_identical_predictions():
 def test_law_from_curve_inverts_curve_targets():
     """Three anchors, three unknowns: an identifiable law is recovered exactly; for any law in the bounds the
     curve at the anchors is reproduced (the parameters of a nearly straight curve need not be)."""
-    laws = pd.DataFrame({"mu_s": [0.70, 0.55, 0.80], "mu_k": [0.30, 0.20, 0.0], "alpha": [0.10, 0.05, 0.02]},
-                        index=["a", "b", "c"])
+    laws = pd.DataFrame(
+        {"mu_s": [0.70, 0.55, 0.80], "mu_k": [0.30, 0.20, 0.0], "alpha": [0.10, 0.05, 0.02]}, index=["a", "b", "c"]
+    )
     C = R.curve_targets(laws)
     assert list(C.columns) == [f"mu@{v:g}" for v in R.CURVE_ANCHORS_KMH]
     assert C.loc["a", "mu@40"] == pytest.approx(0.30 + 0.40 * np.exp(-0.10 * 40 / 3.6), abs=1e-12)
@@ -448,8 +506,11 @@ def test_curve_targets_average_curves_not_parameters():
     slow = _slow_twin(fast)
     spread = np.max(np.abs(fast.mu_kmh(v) - slow.mu_kmh(v)))
     assert slow.mu_k == 0 and spread < 0.015
-    Y = pd.DataFrame([[fast.mu_s, fast.mu_k, fast.alpha], [slow.mu_s, slow.mu_k, slow.alpha]] * 6,
-                     columns=list(R.PARAMETERS), index=[f"S{i:02d}" for i in range(12)])
+    Y = pd.DataFrame(
+        [[fast.mu_s, fast.mu_k, fast.alpha], [slow.mu_s, slow.mu_k, slow.alpha]] * 6,
+        columns=list(R.PARAMETERS),
+        index=[f"S{i:02d}" for i in range(12)],
+    )
     X = pd.DataFrame({"profile_MPD": np.linspace(0.5, 1.5, 12)}, index=Y.index)
     mean_curve = R.curve_targets(Y).mean().to_numpy()
     p_par = R.predict_parameters("mean", X, Y, X.iloc[:1]).iloc[0]
@@ -473,8 +534,13 @@ def test_curve_model_recovers_curves_that_are_linear_in_texture():
         law = ExponentialDecay(*R.law_from_curve(0.45 + 0.1 * np.exp(-0.1 * 2.0 * v / 3.6) + 0.02 * f))
         rows.append(_slow_twin(law) if rng.random() < 0.5 else law)
     Y = pd.DataFrame([[r.mu_s, r.mu_k, r.alpha] for r in rows], columns=list(R.PARAMETERS), index=X.index)
-    truth = pd.DataFrame({"site": np.repeat(X.index, len(v)), "speed_kmh": np.tile(v, len(X)),
-                          "mu": R.curve_targets(Y).to_numpy().ravel()})
+    truth = pd.DataFrame(
+        {
+            "site": np.repeat(X.index, len(v)),
+            "speed_kmh": np.tile(v, len(X)),
+            "mu": R.curve_targets(Y).to_numpy().ravel(),
+        }
+    )
     cvp = R.cross_validated_predictions(X, Y, groups, ["ridge", "ridge@curve"])
     t = R.score_predictions(cvp, Y, measured_dft=truth, speeds_kmh=v)
     pooled = t[(t["quantity"] == "dft") & t["speed_kmh"].isna()].set_index("model")["rmse"]

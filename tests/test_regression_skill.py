@@ -29,8 +29,13 @@ def campaign(n_sections=12, per=3, p=30, seed=0):
 
 def long_dft(D: pd.DataFrame) -> pd.DataFrame:
     """Wide dft@<v> targets -> long (site, speed_kmh, mu)."""
-    return pd.DataFrame({"site": np.repeat(D.index.astype(str), D.shape[1]),
-                         "speed_kmh": np.tile(R.dft_speeds(D), len(D)), "mu": D.to_numpy().ravel()})
+    return pd.DataFrame(
+        {
+            "site": np.repeat(D.index.astype(str), D.shape[1]),
+            "speed_kmh": np.tile(R.dft_speeds(D), len(D)),
+            "mu": D.to_numpy().ravel(),
+        }
+    )
 
 
 def two_column_curves(X, Z, rng, a="macro_P04", b="micro_P14", noise=0.004):
@@ -54,8 +59,8 @@ def laws_for(X):
 def test_subset_sse_closed_forms_match_least_squares():
     rng = np.random.default_rng(1)
     Atr, Ate = rng.normal(size=(14, 5)), rng.normal(size=(4, 5))
-    Atr[:, 3] = 2.0                      # constant on the training rows
-    Atr[:, 4] = -3 * Atr[:, 0] + 1.0     # collinear with column 0
+    Atr[:, 3] = 2.0  # constant on the training rows
+    Atr[:, 4] = -3 * Atr[:, 0] + 1.0  # collinear with column 0
     Ate[:, 4] = -3 * Ate[:, 0] + 1.0
     Ytr, Yte = rng.normal(size=(14, 3)), rng.normal(size=(4, 3))
     subsets = R.candidate_subsets(5)
@@ -85,8 +90,9 @@ def test_baseline_recovers_two_parameter_linear_truth_and_picks_the_pair():
     np.testing.assert_allclose(fit.coef[k["macro_P04"]] / dzdx["macro_P04"], 0.05 * np.exp(-v / 100), atol=0.003)
     np.testing.assert_allclose(fit.coef[k["micro_P14"]] / dzdx["micro_P14"], -0.03 * np.ones(6), atol=0.003)
     # and out of section: every fold of the CV picks the pair, the pooled R^2 is near 1
-    cvt = R.cross_validate_models(X, laws_for(X), groups, ["mean@dft", R.BASELINE_MODEL],
-                                  measured_dft=long_dft(D), speeds_kmh=SPEEDS)
+    cvt = R.cross_validate_models(
+        X, laws_for(X), groups, ["mean@dft", R.BASELINE_MODEL], measured_dft=long_dft(D), speeds_kmh=SPEEDS
+    )
     pooled = cvt[(cvt["quantity"] == "dft") & cvt["speed_kmh"].isna()].set_index("model")
     assert pooled.loc[R.BASELINE_MODEL, "r2"] > 0.98
     assert pooled.loc[R.BASELINE_MODEL, "rmse"] < 0.006
@@ -98,8 +104,9 @@ def test_baseline_recovers_two_parameter_linear_truth_and_picks_the_pair():
 def test_baseline_keeps_the_intercept_only_when_no_column_helps():
     """The empty subset is a candidate and wins exact ties (a curve that does not vary between sites)."""
     X, Z, groups, rng = campaign(n_sections=8, p=8, seed=3)
-    D = pd.DataFrame(np.tile(0.6 - 0.002 * np.asarray(SPEEDS), (len(X), 1)), index=X.index,
-                     columns=[R.dft_column(s) for s in SPEEDS])
+    D = pd.DataFrame(
+        np.tile(0.6 - 0.002 * np.asarray(SPEEDS), (len(X), 1)), index=X.index, columns=[R.dft_column(s) for s in SPEEDS]
+    )
     fit = R.fit_subset_ols(X, D, groups=groups.to_numpy())
     assert fit.columns == () and fit.label == "(intercept only)"
     np.testing.assert_allclose(fit.predict(X.iloc[:2]).to_numpy(), np.tile(D.mean().to_numpy(), (2, 1)))
@@ -147,8 +154,11 @@ def test_baseline_inner_cv_never_sees_the_held_out_section():
     honest, pred = _brute_force_baseline(X, D, groups, leak=False)
     leaky, _ = _brute_force_baseline(X, D, groups, leak=True)
     assert ours == honest
-    np.testing.assert_allclose(cvp[[R.dft_column(s) for s in SPEEDS]].to_numpy(),
-                               pd.DataFrame(pred, index=X.index).loc[cvp["site"]].to_numpy(), rtol=1e-9)
+    np.testing.assert_allclose(
+        cvp[[R.dft_column(s) for s in SPEEDS]].to_numpy(),
+        pd.DataFrame(pred, index=X.index).loc[cvp["site"]].to_numpy(),
+        rtol=1e-9,
+    )
     assert len(set(honest.values())) > 1 and len(set(leaky.values())) == 1
     assert sum(leaky[k] != honest[k] for k in honest) >= 3  # the test can tell a leak from none
     # and the held-out section's DFT does not move its own prediction
@@ -193,8 +203,8 @@ def test_dft_models_are_scored_on_their_own_predictions_and_hand_a_law_to_the_fe
         e = p[cols].to_numpy() - D.loc[p.index, cols].to_numpy()
         sst = ((D.to_numpy() - D.to_numpy().mean()) ** 2).sum()
         row = cvt[(cvt["model"] == m) & (cvt["quantity"] == "dft") & cvt["speed_kmh"].isna()].iloc[0]
-        assert row["r2"] == pytest.approx(1 - (e ** 2).sum() / sst, rel=1e-12)
-        assert row["rmse"] == pytest.approx(np.sqrt((e ** 2).mean()), rel=1e-12)
+        assert row["r2"] == pytest.approx(1 - (e**2).sum() / sst, rel=1e-12)
+        assert row["rmse"] == pytest.approx(np.sqrt((e**2).mean()), rel=1e-12)
     # mean@dft: the training sections' mean DFT at each speed
     held = groups == "E02"
     p = cvp[(cvp["model"] == "mean@dft") & (cvp["section"] == "E02")]
@@ -223,15 +233,16 @@ def test_dft_targets_from_measured_or_from_the_laws():
 
 
 def _cv_table(rows):
-    return pd.DataFrame([{"model": m, "quantity": "dft", "speed_kmh": np.nan, "n": 36, "r2": r2, "rmse": rmse}
-                         for m, r2, rmse in rows]
-                        + [{"model": "pca", "quantity": "mu_s", "speed_kmh": np.nan, "n": 36, "r2": 0.1,
-                            "rmse": 0.02}])
+    return pd.DataFrame(
+        [{"model": m, "quantity": "dft", "speed_kmh": np.nan, "n": 36, "r2": r2, "rmse": rmse} for m, r2, rmse in rows]
+        + [{"model": "pca", "quantity": "mu_s", "speed_kmh": np.nan, "n": 36, "r2": 0.1, "rmse": 0.02}]
+    )
 
 
 def test_skill_table_warns_when_the_chosen_model_is_worse_than_the_mean():
-    cvt = _cv_table([("pca", -0.30, 0.080), ("mean@dft", 0.20, 0.060), ("ols2@dft", 0.55, 0.045),
-                     ("ridge@curve", 0.70, 0.038)])
+    cvt = _cv_table(
+        [("pca", -0.30, 0.080), ("mean@dft", 0.20, 0.060), ("ols2@dft", 0.55, 0.045), ("ridge@curve", 0.70, 0.038)]
+    )
     sk = R.prediction_skill(cvt, "pca", notes={"ols2@dft": "raw_Sq+micro_Vvc in 12 of 12 folds"})
     assert list(sk["model"]) == ["ridge@curve", "ols2@dft", "mean@dft", "pca"]  # by RMSE
     c = sk.set_index("model")
@@ -246,8 +257,10 @@ def test_skill_table_warns_when_the_chosen_model_is_worse_than_the_mean():
     # beats the mean, not the baseline: the warning names the baseline only
     sk = R.prediction_skill(cvt, "mean@dft")
     assert sk.attrs["warning"].startswith("WARNING: the chosen model is the intercept-only mean mean@dft itself")
-    assert "2 model(s) of the comparison have a lower RMSE; it does not beat the simple baseline ols2@dft" \
+    assert (
+        "2 model(s) of the comparison have a lower RMSE; it does not beat the simple baseline ols2@dft"
         in sk.attrs["warning"]
+    )
     cvt2 = _cv_table([("pls", 0.40, 0.050), ("mean@dft", 0.20, 0.060), ("ols2@dft", 0.55, 0.045)])
     w2 = R.prediction_skill(cvt2, "pls").attrs["warning"]
     assert "ols2@dft" in w2 and "intercept-only" not in w2
@@ -261,13 +274,19 @@ def test_skill_table_warns_when_the_chosen_model_is_worse_than_the_mean():
 def test_run_analysis_always_compares_with_mean_and_baseline_and_writes_the_skill_table(tmp_path):
     X, Z, groups, rng = campaign(n_sections=8, p=10, seed=9)
     D = two_column_curves(X, Z, rng, a="macro_P01", b="raw_P06")
-    Y = pd.DataFrame({"mu_s": 0.6 + 0.01 * rng.normal(size=len(X)), "mu_k": 0.3 + 0.01 * rng.normal(size=len(X)),
-                      "alpha": 0.05 + 0.005 * rng.normal(size=len(X))}, index=X.index)
+    Y = pd.DataFrame(
+        {
+            "mu_s": 0.6 + 0.01 * rng.normal(size=len(X)),
+            "mu_k": 0.3 + 0.01 * rng.normal(size=len(X)),
+            "alpha": 0.05 + 0.005 * rng.normal(size=len(X)),
+        },
+        index=X.index,
+    )
     d = R.Design(X=X, Y=Y, groups=groups)
-    kw = dict(n_train=18, seed=1, grouped_by="section", figure11_models=("best",), measured_dft=long_dft(D),
-              speeds_kmh=SPEEDS)
+    opts = dict(seed=1, grouped_by="section", figure11_models=("best",), prediction_speeds_kmh=SPEEDS)
+    kw = dict(n_train=18, measured_dft=long_dft(D))
     # the references are cross-validated even when not listed, but compete for "best" only when listed
-    a = R.run_analysis(d, models=("mean", "pca"), **kw)
+    a = R.run_analysis(d, R.RegressionOptions(models=("mean", "pca"), **opts), **kw)
     assert set(a.cv_predictions["model"]) == {"mean", "pca", R.MEAN_MODEL, R.BASELINE_MODEL}
     assert a.best in ("mean", "pca") and set(a.ranking["model"]) == {"mean", "pca"}
     # the laws carry nothing (noise), the DFT is linear in two columns: the chosen model loses to both
@@ -279,7 +298,7 @@ def test_run_analysis_always_compares_with_mean_and_baseline_and_writes_the_skil
     assert back.loc[back["model"] == a.best, "warning"].iloc[0] == w
     assert back.loc[back["model"] == a.best, "beats_both"].astype(str).iloc[0] == "False"
     # listed, the baseline wins, and hands the FE a law
-    b = R.run_analysis(d, models=("mean", "pca", R.BASELINE_MODEL), **kw)
+    b = R.run_analysis(d, R.RegressionOptions(models=("mean", "pca", R.BASELINE_MODEL), **opts), **kw)
     assert b.best == R.BASELINE_MODEL
     assert b.skill.attrs["warning"].startswith("WARNING: the chosen model is the simple baseline")
     assert b.skill.attrs["warning"].endswith("no other model of the comparison beats it")

@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 pytestmark = pytest.mark.skipif(
     os.environ.get("SKIDSIM_TEST_SLURM") != "1" or not all(shutil.which(t) for t in ("sbatch", "squeue", "scontrol")),
-    reason="needs SKIDSIM_TEST_SLURM=1 and a SLURM cluster (make test-slurm)")
+    reason="needs SKIDSIM_TEST_SLURM=1 and a SLURM cluster (make test-slurm)",
+)
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_cluster import TINY  # noqa: E402  the 3-site campaign of the fake-cluster test, one definition
@@ -57,8 +58,20 @@ def code_snapshot(tmp_path_factory):
 
 def _cmd(workdir: Path, *args: str, targets: tuple[str, ...] = ()) -> list[str]:
     # targets first: options such as --resources and --set-resources take every word after them
-    return [sys.executable, "-m", "snakemake", *targets, "-s", str(CODE / "Snakefile"), "--directory", str(workdir),
-            "--configfile", str(CODE / "config" / "config.yaml"), str(workdir / "tiny.yaml"), *args]
+    return [
+        sys.executable,
+        "-m",
+        "snakemake",
+        *targets,
+        "-s",
+        str(CODE / "Snakefile"),
+        "--directory",
+        str(workdir),
+        "--configfile",
+        str(CODE / "config" / "config.yaml"),
+        str(workdir / "tiny.yaml"),
+        *args,
+    ]
 
 
 def _env() -> dict:
@@ -75,14 +88,16 @@ def _slurm_args(caps: tuple[int, int]) -> list[str]:
 
 
 def _job_ids() -> set[int]:
-    out = subprocess.run(["squeue", "--states=all", "-h", "-o", "%i"], capture_output=True, text=True,
-                         check=True).stdout
+    out = subprocess.run(
+        ["squeue", "--states=all", "-h", "-o", "%i"], capture_output=True, text=True, check=True
+    ).stdout
     return {int(x) for x in out.split() if x.isdigit()}
 
 
 def _squeue() -> dict[int, tuple[str, str]]:
-    out = subprocess.run(["squeue", "--states=all", "-h", "-o", "%i|%T|%k"], capture_output=True, text=True,
-                         check=True).stdout
+    out = subprocess.run(
+        ["squeue", "--states=all", "-h", "-o", "%i|%T|%k"], capture_output=True, text=True, check=True
+    ).stdout
     jobs = {}
     for line in out.splitlines():
         jid, state, comment = line.split("|", 2)
@@ -98,8 +113,11 @@ def slurm_cluster():
     conf = subprocess.run(["scontrol", "show", "config"], capture_output=True, text=True, check=True).stdout
     storage = re.search(r"^AccountingStorageType\s*=\s*(\S+)", conf, flags=re.M).group(1)
     min_job_age = int(re.search(r"^MinJobAge\s*=\s*(\d+)", conf, flags=re.M).group(1))
-    return {"accounting": storage.endswith("slurmdbd"), "min_job_age_s": min_job_age,
-            "caps": cluster.caps(cluster.nodes())}
+    return {
+        "accounting": storage.endswith("slurmdbd"),
+        "min_job_age_s": min_job_age,
+        "caps": cluster.caps(cluster.nodes()),
+    }
 
 
 @pytest.fixture(scope="module")
@@ -119,8 +137,14 @@ def slurm_run(tmp_path_factory, slurm_cluster):
     before = max(_job_ids(), default=0)
     t0 = time.monotonic()
     log = open(wd / "snakemake.log", "w")
-    proc = subprocess.Popen(_cmd(wd, *_slurm_args(slurm_cluster["caps"])), stdout=log, stderr=subprocess.STDOUT,
-                            cwd=CODE, text=True, env=_env())
+    proc = subprocess.Popen(
+        _cmd(wd, *_slurm_args(slurm_cluster["caps"])),
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        cwd=CODE,
+        text=True,
+        env=_env(),
+    )
     cancelled, seen = None, set()
     try:
         while proc.poll() is None:
@@ -139,15 +163,26 @@ def slurm_run(tmp_path_factory, slurm_cluster):
     wall_s = time.monotonic() - t0
     seen |= {j for j in _job_ids() if j > before}
     text = (wd / "snakemake.log").read_text()
-    report = {"accounting": slurm_cluster["accounting"], "wall_s": round(wall_s, 1), "jobs": len(seen),
-              "cancelled": cancelled, "returncode": proc.returncode}
+    report = {
+        "accounting": slurm_cluster["accounting"],
+        "wall_s": round(wall_s, 1),
+        "jobs": len(seen),
+        "cancelled": cancelled,
+        "returncode": proc.returncode,
+    }
     print("SLURM run:", json.dumps(report))
     if os.environ.get("SKIDSIM_SLURM_REPORT"):  # make test-slurm collects the measured figures here
         with open(os.environ["SKIDSIM_SLURM_REPORT"], "a") as f:
             grants = [cluster.granted(str(j)).__dict__ for j in sorted(seen)]
             f.write(json.dumps({**report, "grants": grants}) + "\n")
-    return {"dir": wd, "rc": proc.returncode, "log": text, "jobs": sorted(seen), "cancelled": cancelled,
-            "wall_s": wall_s}
+    return {
+        "dir": wd,
+        "rc": proc.returncode,
+        "log": text,
+        "jobs": sorted(seen),
+        "cancelled": cancelled,
+        "wall_s": wall_s,
+    }
 
 
 def test_cluster_is_in_the_requested_accounting_mode(slurm_cluster):
@@ -191,7 +226,7 @@ def _compare_json(a, b, path, dirs):
 
 def _relative(df: pd.DataFrame, wd: Path) -> pd.DataFrame:
     df = df.drop(columns=[c for c in df.columns if TIMING_KEYS.search(str(c))])
-    for c in df.columns[df.dtypes.map(lambda t: t == object or str(t).startswith("str"))]:
+    for c in df.columns[df.dtypes.map(lambda t: pd.api.types.is_object_dtype(t) or str(t).startswith("str"))]:
         df[c] = df[c].map(lambda v: v.replace(str(wd), "<wd>") if isinstance(v, str) else v)
     return df
 
@@ -199,21 +234,27 @@ def _relative(df: pd.DataFrame, wd: Path) -> pd.DataFrame:
 def test_every_output_equals_the_local_run(slurm_run, local_run):
     assert slurm_run["rc"] == 0
     local, remote = local_run / "results", slurm_run["dir"] / "results"
-    files = sorted(p.relative_to(local) for p in local.rglob("*") if p.suffix in (".parquet", ".json", ".csv")
-                   and "cache" not in p.parts)
+    files = sorted(
+        p.relative_to(local)
+        for p in local.rglob("*")
+        if p.suffix in (".parquet", ".json", ".csv") and "cache" not in p.parts
+    )
     assert len(files) >= 30, files
     for rel in files:
         a, b = local / rel, remote / rel
         assert b.exists(), f"{rel} missing from the SLURM run"
         if rel.suffix == ".parquet":
-            pd.testing.assert_frame_equal(_relative(pd.read_parquet(a), local_run),
-                                          _relative(pd.read_parquet(b), slurm_run["dir"]), obj=str(rel))
+            pd.testing.assert_frame_equal(
+                _relative(pd.read_parquet(a), local_run), _relative(pd.read_parquet(b), slurm_run["dir"]), obj=str(rel)
+            )
         elif rel.suffix == ".json":
-            _compare_json(json.loads(a.read_text()), json.loads(b.read_text()), str(rel),
-                          (str(local_run), str(slurm_run["dir"])))
+            _compare_json(
+                json.loads(a.read_text()), json.loads(b.read_text()), str(rel), (str(local_run), str(slurm_run["dir"]))
+            )
         else:
-            pd.testing.assert_frame_equal(_relative(pd.read_csv(a), local_run),
-                                          _relative(pd.read_csv(b), slurm_run["dir"]), obj=str(rel))
+            pd.testing.assert_frame_equal(
+                _relative(pd.read_csv(a), local_run), _relative(pd.read_csv(b), slurm_run["dir"]), obj=str(rel)
+            )
     # figures: same set of files
     pngs = {p.relative_to(local) for p in local.rglob("*.png")}
     assert pngs == {p.relative_to(remote) for p in remote.rglob("*.png")}
@@ -247,19 +288,38 @@ def test_slurm_granted_what_the_resources_table_says(slurm_run, slurm_cluster):
         by_id = {g.job_id: g for g in cluster.granted_sacct([str(j) for j in slurm_run["jobs"]])}
         for jid in slurm_run["jobs"]:
             g = cluster.granted(str(jid))
-            assert (by_id[str(jid)].cpus, by_id[str(jid)].mem_mb, by_id[str(jid)].time_limit_min) == \
-                (g.cpus, g.mem_mb, g.time_limit_min), jid
+            assert (by_id[str(jid)].cpus, by_id[str(jid)].mem_mb, by_id[str(jid)].time_limit_min) == (
+                g.cpus,
+                g.mem_mb,
+                g.time_limit_min,
+            ), jid
 
 
 def test_job_over_its_memory_is_reported_with_rule_and_site(slurm_run):
     wd = slurm_run["dir"]
     target = "results/sites/E6-1/calibration_ours.json"
-    r = subprocess.run(_cmd(wd, *_profile(), "--jobs", "1", "--retries", "0",
-                            "--force", "--set-resources", "calibrate:mem_mb=100", targets=(target,)),
-                       capture_output=True, text=True, env=_env(), cwd=CODE, timeout=900)
+    r = subprocess.run(
+        _cmd(
+            wd,
+            *_profile(),
+            "--jobs",
+            "1",
+            "--retries",
+            "0",
+            "--force",
+            "--set-resources",
+            "calibrate:mem_mb=100",
+            targets=(target,),
+        ),
+        capture_output=True,
+        text=True,
+        env=_env(),
+        cwd=CODE,
+        timeout=900,
+    )
     out = r.stdout + r.stderr
     assert r.returncode != 0, out[-3000:]
-    err = out[out.index("Error in rule calibrate"):]
+    err = out[out.index("Error in rule calibrate") :]
     assert "output: results/sites/E6-1/calibration_ours.json" in err[:1500], err[:2000]  # rule and site
     assert "SLURM status is: 'FAILED'" in err or "OUT_OF_MEMORY" in err, err[:2000]
     assert "exceeded memory limit" in out, out[-3000:]  # the SLURM log, shown by show-failed-logs
@@ -280,9 +340,24 @@ def test_group_larger_than_the_node_is_refused_at_submission(slurm_run, slurm_cl
     wd = slurm_run["dir"]
     before = _job_ids()
     t0 = time.monotonic()
-    r = subprocess.run(_cmd(wd, *_profile(), "--jobs", "1", "--retries", "0", "--forcerun", "despeckle",
-                            targets=("results/sites/E1-1/texture.parquet", "results/sites/E1-1/pavement.npz")),
-                       capture_output=True, text=True, env=_env(), cwd=CODE, timeout=600)
+    r = subprocess.run(
+        _cmd(
+            wd,
+            *_profile(),
+            "--jobs",
+            "1",
+            "--retries",
+            "0",
+            "--forcerun",
+            "despeckle",
+            targets=("results/sites/E1-1/texture.parquet", "results/sites/E1-1/pavement.npz"),
+        ),
+        capture_output=True,
+        text=True,
+        env=_env(),
+        cwd=CODE,
+        timeout=600,
+    )
     out = r.stdout + r.stderr
     assert r.returncode != 0, out[-3000:]
     assert "Error in group site_texture" in out, out[-3000:]
@@ -290,6 +365,7 @@ def test_group_larger_than_the_node_is_refused_at_submission(slurm_run, slurm_cl
     assert _job_ids() == before, "a job was queued although sbatch should have refused it"
     assert time.monotonic() - t0 < 300  # refused at once, no wait for a job that can never start
     # the same request by hand: SLURM's reason, which the run's output lacks
-    sb = subprocess.run(["sbatch", "--test-only", "-c", "3", "--mem", "5500", "--wrap", "true"],
-                        capture_output=True, text=True)
+    sb = subprocess.run(
+        ["sbatch", "--test-only", "-c", "3", "--mem", "5500", "--wrap", "true"], capture_output=True, text=True
+    )
     assert sb.returncode != 0 and "More processors requested than permitted" in sb.stderr, sb.stderr

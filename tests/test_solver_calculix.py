@@ -24,23 +24,40 @@ pytestmark = pytest.mark.skipif(CCX is None, reason="CalculiX (ccx) not installe
 def test_static_indentation_matches_calculix(tmp_path):
     from skidsim.exports import run_calculix, write_inp
 
-    surf = SinusoidalSurface(amplitude_m=30e-6, wavelength_x_m=10e-3, wavelength_y_m=12e-3, phase=0.3,
-                             extent_m=(0.0, 0.024, -0.01, 0.01))
+    surf = SinusoidalSurface(
+        amplitude_m=30e-6, wavelength_x_m=10e-3, wavelength_y_m=12e-3, phase=0.3, extent_m=(0.0, 0.024, -0.01, 0.01)
+    )
     hf = to_heightfield(surf, 0.25e-3)
-    cfg = SolverConfig(element_mm=1.0, slide_length_mm=0.6, window_start_mm=0.1, penalty_scale=10.0,
-                       edge_margin_mm=0.5, preload_time_s=2e-3)
+    cfg = SolverConfig(
+        element_mm=1.0,
+        slide_length_mm=0.6,
+        window_start_mm=0.1,
+        penalty_scale=10.0,
+        edge_margin_mm=0.5,
+        preload_time_s=2e-3,
+    )
     slider = SliderMesh.box(cfg.slider_length_mm, cfg.slider_width_mm, cfg.slider_thickness_mm, cfg.element_mm)
     # the same plan position as simulate(): rear edge edge_margin_mm after x_min, centred in y
     centre = (hf.extent[0] + cfg.edge_margin_mm * 1e-3 + 0.5 * slider.size_m[0], 0.5 * (hf.extent[2] + hf.extent[3]))
-    deck = write_inp(tmp_path / "static.inp", slider, hf, ExponentialDecay(0.5, 0.4, 0.3), load_n=cfg.load_n,
-                     step="static", center_xy_m=centre)
+    deck = write_inp(
+        tmp_path / "static.inp",
+        slider,
+        hf,
+        ExponentialDecay(0.5, 0.4, 0.3),
+        load_n=cfg.load_n,
+        step="static",
+        center_xy_m=centre,
+    )
     assert deck.penalty_pa_per_m == pytest.approx(10 * cfg.youngs_modulus_pa / slider.hz)
     res = run_calculix(deck.path, tmp_path, deck=deck, ccx=CCX)
     fz_ccx = abs(res.normal_force_n)
     area_ccx = res.contact_area_mm2 * 1e-6
     # independent check of the parsed area: our own reading of the contact pressures and tributary areas
-    own = float(deck.bottom_tributary_area_m2[np.isin(deck.bottom_node_ids,
-                                                      res.contact_nodes[res.contact_pressure_pa > 0])].sum())
+    own = float(
+        deck.bottom_tributary_area_m2[
+            np.isin(deck.bottom_node_ids, res.contact_nodes[res.contact_pressure_pa > 0])
+        ].sum()
+    )
     assert own == pytest.approx(area_ccx, rel=1e-9)
 
     r = simulate(hf, 20, ConstantFriction(0.0), cfg)

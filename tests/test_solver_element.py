@@ -7,10 +7,15 @@ import numpy as np
 import pytest
 
 from skidsim.slidermesh import SliderMesh
-from skidsim.solver.kernel import NaiveKernel, StructuredKernel, to_internal, to_mesh_layout
-from skidsim.solver.material import (RubberMaterial, element_matrices, element_max_frequency, element_stiffness,
-                                     lumped_mass)
 from skidsim.solver.explicit import build_kernel, max_frequency_power_iteration
+from skidsim.solver.kernel import NaiveKernel, StructuredKernel, to_internal, to_mesh_layout
+from skidsim.solver.material import (
+    RubberMaterial,
+    element_matrices,
+    element_max_frequency,
+    element_stiffness,
+    lumped_mass,
+)
 
 MAT = RubberMaterial()
 
@@ -19,8 +24,8 @@ def test_element_has_six_rigid_modes_and_no_hourglass_modes():
     ke = element_stiffness(MAT, 0.5e-3, 0.5e-3, 0.5e-3)
     lam = np.linalg.eigvalsh(ke)
     scale = lam.max()
-    assert np.sum(np.abs(lam) < 1e-9 * scale) == 6   # exactly 3 translations + 3 rotations
-    assert lam[6] > 1e-3 * scale                      # no hourglass (zero-energy) mode
+    assert np.sum(np.abs(lam) < 1e-9 * scale) == 6  # exactly 3 translations + 3 rotations
+    assert lam[6] > 1e-3 * scale  # no hourglass (zero-energy) mode
 
 
 def test_patch_test_constant_strain_exact():
@@ -57,7 +62,8 @@ def test_structured_kernel_equals_naive_gather_scatter():
     v = np.random.default_rng(4).standard_normal(u.shape)
     k = StructuredKernel(mesh, ke)
     assert abs(np.vdot(v, k.force(u, np.empty_like(u))) - np.vdot(u, k.force(v, np.empty_like(u)))) < 1e-9 * abs(
-        np.vdot(v, k.force(u, np.empty_like(u))))
+        np.vdot(v, k.force(u, np.empty_like(u)))
+    )
     # layout round trip
     np.testing.assert_array_equal(to_internal(to_mesh_layout(u)), u)
     # negate=True is -f_int bit for bit; a non-cubic mesh (nx != ny != nz) exercises the padded slab offsets
@@ -67,8 +73,9 @@ def test_structured_kernel_equals_naive_gather_scatter():
     k2 = StructuredKernel(mesh2, ke2)
     f_pos = k2.force(u2, np.empty_like(u2)).copy()
     np.testing.assert_array_equal(k2.force(u2, np.empty_like(u2), negate=True), -f_pos)
-    np.testing.assert_allclose(f_pos, NaiveKernel(mesh2, ke2).force(u2, np.empty_like(u2)), rtol=0,
-                               atol=1e-12 * np.abs(f_pos).max())
+    np.testing.assert_allclose(
+        f_pos, NaiveKernel(mesh2, ke2).force(u2, np.empty_like(u2)), rtol=0, atol=1e-12 * np.abs(f_pos).max()
+    )
     # dummy (padding) columns carry nothing: the strain energy is that of the real elements
     ue_real = k2.real_columns(k2.ue).reshape(24, -1)
     assert np.count_nonzero(k2.ue) == np.count_nonzero(ue_real) == 24 * mesh2.n_elements
@@ -98,8 +105,8 @@ def test_dilatational_wave_speed_in_constrained_bar():
     t = 0.0
     while len(arrival) < 2:
         v[:, :, :, 0] = 0.0
-        v[0, :, :, 0] = v0           # x = 0 face driven at constant speed
-        v[1:] = 0.0                  # lateral motion suppressed
+        v[0, :, :, 0] = v0  # x = 0 face driven at constant speed
+        v[1:] = 0.0  # lateral motion suppressed
         kern.force(u, f)
         v -= dt * f / mass
         v[0, :, :, 0] = v0
@@ -122,10 +129,10 @@ def test_prony_relaxation_follows_standard_linear_solid():
     X = to_internal(mesh.coordinates)
     gamma = 1e-4
     u = np.zeros_like(X)
-    u[0] = gamma * X[2]                 # simple shear u_x = gamma z
+    u[0] = gamma * X[2]  # simple shear u_x = gamma z
     f = np.empty_like(u)
     kern.force(u, f)
-    top0 = f[0, -1].sum()               # shear resultant on the top face
+    top0 = f[0, -1].sum()  # shear resultant on the top face
     lx, ly, _ = mesh.size_m
     assert top0 == pytest.approx(mat.instantaneous_shear_modulus_pa * gamma * lx * ly, rel=1e-9)
     dt, n = 1e-6, 40
@@ -143,7 +150,7 @@ def test_power_iteration_below_element_bound_and_near_measured_limit():
     mass = to_internal(lumped_mass(mesh, MAT.density_kg_m3))
     w_pi = max_frequency_power_iteration(mesh, MAT, mass)
     w_el = element_max_frequency(MAT, mesh.hx, mesh.hy, mesh.hz)
-    assert w_pi <= w_el * (1 + 1e-9)          # the element bound is an upper bound
+    assert w_pi <= w_el * (1 + 1e-9)  # the element bound is an upper bound
     # field notes: measured stability limit of 0.5 mm cubes ~0.77-0.79 us, i.e. 1.54-1.58 us at 1 mm
     assert 1.45e-6 < 2 / w_pi < 1.75e-6
     # the h / c_d rule is not conservative at nu 0.45
@@ -160,8 +167,11 @@ def test_unit_matrices_scale():
 def test_surface_slopes_match_finite_differences(surf_name):
     from skidsim.solver.surfaces import RandomTexture, SinusoidalSurface, TiltedPlane, to_heightfield
 
-    surf = {"sinusoid": SinusoidalSurface(0.2e-3, 4e-3, 5e-3, 0.3), "random": RandomTexture(seed=7),
-            "tilted": TiltedPlane(0.01, -0.02)}[surf_name]
+    surf = {
+        "sinusoid": SinusoidalSurface(0.2e-3, 4e-3, 5e-3, 0.3),
+        "random": RandomTexture(seed=7),
+        "tilted": TiltedPlane(0.01, -0.02),
+    }[surf_name]
     rng = np.random.default_rng(1)
     x, y = rng.uniform(0.01, 0.1, 50), rng.uniform(-0.01, 0.01, 50)
     h = 1e-7

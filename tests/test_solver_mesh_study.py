@@ -1,6 +1,7 @@
 """The mesh-study table: one run per (speed, size), error against the finest mesh of the same speed."""
 
 import numpy as np
+import pytest
 
 from skidsim.friction import ExponentialDecay
 from skidsim.solver import SinusoidalSurface, SolverConfig
@@ -27,3 +28,21 @@ def test_mesh_study_table_and_error_definition():
     assert np.allclose(t["sn_friction"] + t["sn_geometric"], t["sn"], rtol=1e-9)
     assert np.allclose(t["sn_friction"], law.mu_kmh(60.0), rtol=0.02)
     assert (t["mean_contact_nodes"] > 0).all() and (t["stick_fraction"] < 0.05).all()
+    assert (t["friction_model"] == "stick_limit").all() and (t["slide_damping_model"] == "mass").all()
+    # the law sees about the sliding speed on the gentle texture (m/s; the stick limit samples the trial speed)
+    assert np.allclose(t["mean_slip_speed_ms"], 60 / 3.6, rtol=0.1)
+
+
+def test_richardson_recovers_the_limit_and_order_of_a_power_law():
+    from skidsim.solver.mesh_study import richardson
+
+    h = [0.5, 0.35, 0.25]  # mm, non-uniform refinement ratios (1.43, 1.4)
+    est = richardson(h, [0.35 - 0.04 * x**1.5 for x in h])
+    assert est["monotone"]
+    assert est["value"] == pytest.approx(0.35, rel=1e-10) and est["order"] == pytest.approx(1.5, rel=1e-8)
+    assert est["error_pct"][0] == pytest.approx(100 * (-0.04 * 0.5**1.5) / 0.35, rel=1e-8)
+    # oscillating differences: no order, no extrapolation
+    osc = richardson(h, [0.35, 0.34, 0.345])
+    assert not osc["monotone"] and np.isnan(osc["value"])
+    with pytest.raises(ValueError, match="three"):
+        richardson([0.5, 0.5, 0.25], [1.0, 1.0, 1.0])

@@ -79,17 +79,35 @@ def test_tilted_plane_geometry():
 def test_outputs_trace_and_vtu(tmp_path):
     cfg = FAST.replace(vtu_frames=3)
     calls = []
-    r = simulate(FlatPlane(), 30, ConstantFriction(0.4), cfg.replace(progress_every_s=1e-9),
-                 trace_path=tmp_path / "t.parquet", vtu_dir=tmp_path / "vtu",
-                 progress=lambda *a: calls.append(a))
+    r = simulate(
+        FlatPlane(),
+        30,
+        ConstantFriction(0.4),
+        cfg.replace(progress_every_s=1e-9),
+        trace_path=tmp_path / "t.parquet",
+        vtu_dir=tmp_path / "vtu",
+        progress=lambda *a: calls.append(a),
+    )
     t = pd.read_parquet(tmp_path / "t.parquet")
-    assert list(t.columns) == ["time_s", "position_mm", "tangential_n", "normal_n", "contact_area_mm2",
-                               "friction_x_n", "contact_nodes", "stick_nodes"]
+    assert list(t.columns) == [
+        "time_s",
+        "position_mm",
+        "tangential_n",
+        "normal_n",
+        "contact_area_mm2",
+        "friction_x_n",
+        "contact_nodes",
+        "stick_nodes",
+        "slip_speed_ms",
+    ]
     # flat plane: the whole resisting force is friction, every bottom node is in contact, none held by the limit
     assert np.allclose(t["friction_x_n"], t["tangential_n"], rtol=1e-9, atol=1e-12)
-    steady = t[t["position_mm"] >= cfg.window_start_mm]   # (2 of the 99 nodes lift briefly at the start)
+    steady = t[t["position_mm"] >= cfg.window_start_mm]  # (2 of the 99 nodes lift briefly at the start)
     assert (steady["contact_nodes"] == (cfg.slider_length_mm / 2 + 1) * (cfg.slider_width_mm / 2 + 1)).all()
     assert (steady["stick_nodes"] == 0).all()
+    # the law sees the sliding speed on a flat plane (normal-force-weighted slip speed, m/s)
+    assert steady["slip_speed_ms"].mean() == pytest.approx(30 / 3.6, rel=0.01)
+    assert r.mean_slip_speed_ms == pytest.approx(30 / 3.6, rel=0.01)
     # per-phase wall times: all six phases timed, together not more than the run
     ph = r.meta["phase_s"]
     assert set(ph) == {"internal_force", "damping_load", "contact", "friction", "update", "output", "setup_and_rest"}
@@ -98,6 +116,7 @@ def test_outputs_trace_and_vtu(tmp_path):
     assert len(list((tmp_path / "vtu").glob("*.vtu"))) == 3 and (tmp_path / "vtu" / "slider.pvd").exists()
     assert calls and calls[-1][0] == r.n_steps
     import meshio
+
     m = meshio.read(sorted((tmp_path / "vtu").glob("*.vtu"))[-1])
     assert m.points.shape[0] == (cfg.slider_length_mm / 2 + 1) * (cfg.slider_width_mm / 2 + 1) * 4
     assert m.point_data["contact_pressure_pa"].max() > 0
@@ -126,8 +145,23 @@ def test_mesh_study_script_and_plots(tmp_path):
     from skidsim.plotting.solver import plot_trace
 
     mod = runpy.run_path("benchmarks/mesh_study.py", run_name="mesh_study")
-    rc = mod["main"]([str(tmp_path / "m.csv"), str(tmp_path / "m.png"), "--sizes", "2", "1.5", "--speeds", "60",
-                      "--slide-mm", "8", "--window-mm", "3", "--pavement", "sinusoid"])
+    rc = mod["main"](
+        [
+            str(tmp_path / "m.csv"),
+            str(tmp_path / "m.png"),
+            "--sizes",
+            "2",
+            "1.5",
+            "--speeds",
+            "60",
+            "--slide-mm",
+            "8",
+            "--window-mm",
+            "3",
+            "--pavement",
+            "sinusoid",
+        ]
+    )
     assert rc == 0
     t = pd.read_csv(tmp_path / "m.csv")
     assert len(t) == 2 and t.loc[t["element_mm"] == 1.5, "error_pct"].item() == 0.0
@@ -152,15 +186,19 @@ def test_contact_candidate_pruning_is_exact():
     """The per-cell Bernstein bound (SurfaceBound) only skips nodes that cannot touch: same run to round-off."""
     from skidsim.solver.surfaces import SurfaceBound, to_heightfield
 
-    hf = to_heightfield(SinusoidalSurface(amplitude_m=0.2e-3, wavelength_x_m=3e-3, wavelength_y_m=4e-3,
-                                          extent_m=(0.0, 0.04, -0.01, 0.01)), 0.25e-3)
+    hf = to_heightfield(
+        SinusoidalSurface(
+            amplitude_m=0.2e-3, wavelength_x_m=3e-3, wavelength_y_m=4e-3, extent_m=(0.0, 0.04, -0.01, 0.01)
+        ),
+        0.25e-3,
+    )
     b = SurfaceBound(hf)
     rng = np.random.default_rng(3)
     x, y = rng.uniform(-1e-3, 0.041, 200_000), rng.uniform(-0.011, 0.011, 200_000)
     z, _, _ = hf.evaluate(x, y)
     slack = b.zmax_m.take(b.cells(x.copy(), y.copy())) - z
-    assert slack.min() >= 0.0                      # an upper bound everywhere (also outside the grid)
-    assert np.median(slack) < 0.2 * 0.2e-3 * 2     # and a useful one (well below the peak-to-valley height)
+    assert slack.min() >= 0.0  # an upper bound everywhere (also outside the grid)
+    assert np.median(slack) < 0.2 * 0.2e-3 * 2  # and a useful one (well below the peak-to-valley height)
     cfg = TEX_CFG.replace(slide_length_mm=3.0, window_start_mm=1.0)
     law = ExponentialDecay(0.6, 0.35, 0.3)
     a = simulate(hf, 40, law, cfg)

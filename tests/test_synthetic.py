@@ -28,6 +28,7 @@ def row_of(design: pd.DataFrame, site: str) -> dict:
 
 # ------------------------------------------------------------------------------------------------ design
 
+
 def test_default_design_mirrors_sps10():
     d = S.design_campaign(S.default_config())
     assert len(d) == 36
@@ -79,6 +80,7 @@ def test_design_configurable_and_errors():
 
 # ------------------------------------------------------------------------------------------------ determinism
 
+
 def test_site_alone_equals_site_in_campaign(tmp_path):
     cfg = small_cfg()
     d = S.design_campaign(cfg)
@@ -120,6 +122,7 @@ def test_truth_consistent_with_trace():
 
 
 # ------------------------------------------------------------------------------------------------ realism
+
 
 def test_reduced_surfaces_are_pavement_like():
     """100 mm long strips (160 x 2048 points): MPD, negative skew, micro Sq in the study's ranges."""
@@ -180,8 +183,8 @@ def test_micro_field_band_rms_and_hurst():
     F = sfft.fft2(f)
     qy = 2 * np.pi * sfft.fftfreq(shape[0], dx)[:, None]
     qx = 2 * np.pi * sfft.fftfreq(shape[1], dx)[None, :]
-    q = np.sqrt(qy ** 2 + qx ** 2)
-    power = np.abs(F) ** 2 / f.size ** 2
+    q = np.sqrt(qy**2 + qx**2)
+    power = np.abs(F) ** 2 / f.size**2
     band = q > 2 * np.pi / 0.5
     assert np.sqrt(power[band].sum()) == pytest.approx(1.0, rel=0.05)
     # radially averaged PSD slope well above the roll-off: -(2 + 2H)
@@ -199,6 +202,7 @@ def test_micro_field_band_rms_and_hurst():
 
 
 # ------------------------------------------------------------------------------------------------ files
+
 
 def test_write_site_and_sites_csv_round_trip(tmp_path):
     from skidsim.dft import read_dft

@@ -21,8 +21,17 @@ CODE_MM = 0.01
 SHAPE = (100, 2048)  # 102.4 mm rows: one 100 mm MPD segment per row
 
 
-def flat_binder_scan(binder_share: float, seed: int = 0, shape=SHAPE, tilt=(0.0, 0.0), dropout_share=0.0,
-                     porous=False, chips=False, stone_noise_mm=0.0, code_mm: float | None = CODE_MM) -> np.ndarray:
+def flat_binder_scan(
+    binder_share: float,
+    seed: int = 0,
+    shape=SHAPE,
+    tilt=(0.0, 0.0),
+    dropout_share=0.0,
+    porous=False,
+    chips=False,
+    stone_noise_mm=0.0,
+    code_mm: float | None = CODE_MM,
+) -> np.ndarray:
     """Heights in mm (NaN = dropout) of a clean scan: stones on a binder plane at 0 until about
     ``1 - binder_share`` of the area is covered. Caps: ``z = H sqrt(1 - u^2 - v^2)`` with semi-axes 1-3.5 mm and
     H 1-3 mm; chips: flat tops (diamond or square) with vertical sides. ``porous``: heights negated (a flat top
@@ -63,14 +72,17 @@ def flat_binder_scan(binder_share: float, seed: int = 0, shape=SHAPE, tilt=(0.0,
     while np.isnan(h).mean() < dropout_share:
         r = rng.uniform(0.1, 0.4) / DX_MM
         ci, cj = rng.uniform(0, ny), rng.uniform(0, nx)
-        ii, jj = np.mgrid[max(0, int(ci - r)):min(ny, int(ci + r) + 1), max(0, int(cj - r)):min(nx, int(cj + r) + 1)]
+        ii, jj = np.mgrid[
+            max(0, int(ci - r)) : min(ny, int(ci + r) + 1), max(0, int(cj - r)) : min(nx, int(cj + r) + 1)
+        ]
         blob = (ii - ci) ** 2 + (jj - cj) ** 2 <= r * r
         h[ii[blob], jj[blob]] = np.nan
     return h
 
 
-def inject_spikes(h: np.ndarray, seed: int, density: float = 0.0005,
-                  code_mm: float | None = CODE_MM) -> tuple[np.ndarray, np.ndarray]:
+def inject_spikes(
+    h: np.ndarray, seed: int, density: float = 0.0005, code_mm: float | None = CODE_MM
+) -> tuple[np.ndarray, np.ndarray]:
     """(spiked heights, mask of spike points): 3-5 mm, both signs, single points and 2-3 point clusters."""
     rng = np.random.default_rng(seed)
     out, mask = h.copy(), np.zeros(h.shape, bool)
@@ -79,7 +91,7 @@ def inject_spikes(h: np.ndarray, seed: int, density: float = 0.0005,
         i, j = rng.integers(2, h.shape[0] - 3), rng.integers(2, h.shape[1] - 3)
         pts = [(i + di, j + dj) for di, dj in shapes[rng.integers(len(shapes))]]
         # clusters apart from each other (a spike next to another is one larger cluster) and on valid points
-        if any(mask[p[0] - 1:p[0] + 2, p[1] - 1:p[1] + 2].any() or np.isnan(out[p]) for p in pts):
+        if any(mask[p[0] - 1 : p[0] + 2, p[1] - 1 : p[1] + 2].any() or np.isnan(out[p]) for p in pts):
             continue
         amp = rng.uniform(3.0, 5.0) * rng.choice([-1.0, 1.0])
         for p in pts:

@@ -19,7 +19,7 @@ def test_bands_transmit_exact_butterworth_gains():
     cy, lam_y = dct_cosine(rows, 30, d)  # wavelength 0.2133 mm: micro
     z = 0.3 * cx[None, :] + 0.01 * cy[:, None]
     bands = separate_bands(Surface(z, d, d), form="none")
-    g_macro = lambda lam: (butterworth_gain(1 / lam, 0.5, 2, "low") * butterworth_gain(1 / lam, 50, 2, "high"))  # noqa: E731
+    g_macro = lambda lam: butterworth_gain(1 / lam, 0.5, 2, "low") * butterworth_gain(1 / lam, 50, 2, "high")  # noqa: E731
     g_micro = lambda lam: butterworth_gain(1 / lam, 0.5, 2, "high")  # noqa: E731
     expected_macro = 0.3 * g_macro(lam_x) * cx[None, :] + 0.01 * g_macro(lam_y) * cy[:, None]
     expected_micro = 0.3 * g_micro(lam_x) * cx[None, :] + 0.01 * g_micro(lam_y) * cy[:, None]
@@ -36,10 +36,12 @@ def test_gain_is_half_at_cutoff_and_bands_are_complementary():
     b = separate_bands(Surface(z, 0.05, 0.05), macro=(0.5, 50.0), form="none")
     # macro + micro = raw minus what the 50 mm high-pass removes from the long waves
     from scipy import fft
+
     f = dct_radial_frequency(z.shape, 0.05, 0.05)
     raw = b["raw"].heights  # form "none": the mean removed
-    waviness = fft.idctn(fft.dctn(raw, norm="ortho") * butterworth_gain(f, 0.5, 2) * butterworth_gain(f, 50, 2),
-                         norm="ortho")
+    waviness = fft.idctn(
+        fft.dctn(raw, norm="ortho") * butterworth_gain(f, 0.5, 2) * butterworth_gain(f, 50, 2), norm="ortho"
+    )
     assert np.allclose(b["macro"].heights + b["micro"].heights + waviness, raw, atol=1e-12)
     assert np.allclose(raw, z - z.mean(), atol=1e-14)
 
@@ -119,6 +121,7 @@ def test_despeckle_axis_and_mad_and_errors():
 
 def test_mad_and_local_keep_genuine_voids_that_tukey_clips():
     from scipy import ndimage
+
     rng = np.random.default_rng(4)
     f = ndimage.gaussian_filter1d(rng.standard_normal(1200), 25)
     f /= f.std()

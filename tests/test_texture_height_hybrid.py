@@ -56,8 +56,9 @@ def test_sdr_one_dimensional_sinusoid_equals_arc_length():
     z = np.tile(amp * np.sin(2 * np.pi * x / lam), (rows, 1))
     # a surface constant along y: D.15 gives the polyline length exactly; the continuous arc length differs by
     # the discretisation only (O((dx/lam)^2))
-    length = integrate.quad(lambda t: np.sqrt(1 + (amp * 2 * np.pi / lam * np.cos(2 * np.pi * t / lam)) ** 2),
-                            0, (cols - 1) * dx, limit=400)[0]
+    length = integrate.quad(
+        lambda t: np.sqrt(1 + (amp * 2 * np.pi / lam * np.cos(2 * np.pi * t / lam)) ** 2), 0, (cols - 1) * dx, limit=400
+    )[0]
     expected = (length / ((cols - 1) * dx) - 1) * 100
     assert sdr(z, dx, dy) == pytest.approx(expected, rel=2e-3)
     poly = np.sum(np.sqrt(dx**2 + np.diff(z[0]) ** 2))
@@ -69,6 +70,7 @@ def test_height_sdq_sdr_against_surfalize():
     surfalize = pytest.importorskip("surfalize")
     rng = np.random.default_rng(3)
     from scipy import ndimage
+
     for sigma in (0.7, 3.0):  # rough (near Nyquist) and smooth
         z = ndimage.gaussian_filter(rng.standard_normal((90, 120)), sigma)
         s = surfalize.Surface(z, 0.05, 0.04)

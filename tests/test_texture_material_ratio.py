@@ -37,9 +37,21 @@ def analytic():
     smr1 = 100 * stats.norm.sf(upper / SIGMA)
     smr2 = 100 * stats.norm.sf(lower / SIGMA)
     sa1, sa2 = vm(upper), vv(lower)
-    return {"Vm": vm(cp), "Vv": vv(cp), "Vmp": vm(cp), "Vmc": vm(cq) - vm(cp), "Vvc": vv(cp) - vv(cq),
-            "Vvv": vv(cq), "Sk": upper - lower, "Smr1": smr1, "Smr2": smr2, "Sa1": sa1, "Sa2": sa2,
-            "Spk": 2 * sa1 * 100 / smr1, "Svk": 2 * sa2 * 100 / (100 - smr2)}
+    return {
+        "Vm": vm(cp),
+        "Vv": vv(cp),
+        "Vmp": vm(cp),
+        "Vmc": vm(cq) - vm(cp),
+        "Vvc": vv(cp) - vv(cq),
+        "Vvv": vv(cq),
+        "Sk": upper - lower,
+        "Smr1": smr1,
+        "Smr2": smr2,
+        "Sa1": sa1,
+        "Sa2": sa2,
+        "Spk": 2 * sa1 * 100 / smr1,
+        "Svk": 2 * sa2 * 100 / (100 - smr2),
+    }
 
 
 def test_normal_heights_against_analytic():

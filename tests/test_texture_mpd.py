@@ -63,14 +63,15 @@ def test_axis_columns_and_short_profiles():
     res = mean_profile_depth(Surface(z.T.copy(), 0.05, 0.05), axis=0)
     assert res.mpd_mm == pytest.approx(expected_msd(0.8, 10.0), rel=2e-3)
 
+
 def test_short_profiles_give_nan_and_one_warning(caplog):
     # 84.95 mm profiles: 170 resampled samples, below 90 % of the 200 of a 100 mm segment
     with caplog.at_level("WARNING", logger="skidsim"):
         res = mean_profile_depth(Surface(np.zeros((4, 1700)), 0.05, 0.05, name="short"))
     assert np.isnan(res.mpd_mm) and np.isnan(res.etd_mm) and res.n_segments == 0
     assert [r.getMessage() for r in caplog.records] == [
-        "short: MPD not available: profiles are 84.95 mm long, shorter than one 100 mm segment (at least 90 mm "
-        "needed)"]
+        "short: MPD not available: profiles are 84.95 mm long, shorter than one 100 mm segment (at least 90 mm needed)"
+    ]
     # 90 mm and more (180 samples at 0.5 mm: 90 % of a segment) is evaluated, as captif-slp does
     z, _ = sine_scan(rows=2, cols=1800)
     assert mean_profile_depth(Surface(z, 0.05, 0.05)).n_segments == 2
@@ -92,13 +93,14 @@ def test_texture_command_on_scan_shorter_than_one_segment(tmp_path, caplog, caps
     with caplog.at_level("WARNING", logger="skidsim"):
         assert main(["texture", str(path), "-q", "-o", str(out)]) == 0
     warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
-    assert warnings == ["short: MPD not available: profiles are 80.00 mm long, shorter than one 100 mm segment "
-                        "(at least 90 mm needed)"]
+    assert warnings == [
+        "short: MPD not available: profiles are 80.00 mm long, shorter than one 100 mm segment (at least 90 mm needed)"
+    ]
     table = pd.read_csv(out)
     mpd = table[(table["band"] == "profile") & (table["parameter"] == "MPD")]["value"]
     assert len(mpd) == 1 and mpd.isna().all()
     sq = table[(table["band"] == "raw") & (table["parameter"] == "Sq")]["value"].iloc[0]
-    assert sq == pytest.approx(np.sqrt(0.5 ** 2 / 2 + 0.05 ** 2), rel=0.05)  # sine + noise, areal parameters kept
+    assert sq == pytest.approx(np.sqrt(0.5**2 / 2 + 0.05**2), rel=0.05)  # sine + noise, areal parameters kept
 
 
 def test_texture_options_reach_the_areal_mpd():
@@ -110,8 +112,14 @@ def test_texture_options_reach_the_areal_mpd():
     assert mean_profile_depth(s, **TextureOptions().mpd_kwargs()).n_segments == 4
     opt = TextureOptions(mpd_segment_mm=200.0, mpd_spike_alpha=2.0, mpd_max_dropout_pct=5.0)
     kw = opt.mpd_kwargs()
-    assert kw == {"axis": 1, "segment_mm": 200.0, "spike_alpha": 2.0, "detect_plates": False,
-                  "plate_threshold_mm": 30.0, "max_dropout_pct": 5.0}
+    assert kw == {
+        "axis": 1,
+        "segment_mm": 200.0,
+        "spike_alpha": 2.0,
+        "detect_plates": False,
+        "plate_threshold_mm": 30.0,
+        "max_dropout_pct": 5.0,
+    }
     assert mean_profile_depth(s, **kw).n_segments == 2
     with pytest.raises(ConfigError, match="texture.mpd_spike_alpha: expected a positive number, got 0.0"):
         TextureOptions(mpd_spike_alpha=0.0)

@@ -4,29 +4,34 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import ROOT, run_snakemake, snakemake_env
 
 from skidsim.errors import ConfigError
 from skidsim.surface import Surface
 from skidsim.texture import despeckle_detail
-from skidsim.texture.quality import (QualityOptions, ScanQualityError, check_quality, plane_slopes, quality_table,
-                                     scan_quality, usable_length_mm)
+from skidsim.texture.quality import (
+    QualityOptions,
+    ScanQualityError,
+    check_quality,
+    plane_slopes,
+    quality_table,
+    scan_quality,
+    usable_length_mm,
+)
 
-ROOT = Path(__file__).resolve().parents[1]
 DX = 0.05
 
 
 def tilted_scan(sx=0.02, sy=-0.01, shape=(80, 400), seed=0):
     """Plane of slopes sx (x), sy (y) in mm/mm plus 0.2 mm of texture, quantised to 0.01 mm."""
     rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:shape[0], 0:shape[1]] * DX
+    y, x = np.mgrid[0 : shape[0], 0 : shape[1]] * DX
     h = sx * x + sy * y + 0.2 * rng.standard_normal(shape)
     return np.round(h / 0.01) * 0.01
 
@@ -125,8 +130,14 @@ def test_cli_texture_offers_every_despeckle_rule_and_defaults_to_local():
     from skidsim.texture.despeckle import METHODS
 
     parser = build_parser()
-    action = next(a for sp in parser._subparsers._group_actions for name, p in sp.choices.items()
-                  if name == "texture" for a in p._actions if a.dest == "despeckle")
+    action = next(
+        a
+        for sp in parser._subparsers._group_actions
+        for name, p in sp.choices.items()
+        if name == "texture"
+        for a in p._actions
+        if a.dest == "despeckle"
+    )
     assert sorted(action.choices) == sorted(METHODS)
     assert action.default == TextureOptions().despeckle_method == "local"
 
@@ -146,11 +157,15 @@ quality:
 def _run(workdir: Path, action: str) -> subprocess.CompletedProcess:
     cfg = workdir / f"{action}.yaml"
     cfg.write_text(SMALL.format(action=action))
-    cmd = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "--directory", str(workdir),
-           "--configfile", str(ROOT / "config" / "config.yaml"), str(cfg), "--cores", "1",
-           "results/texture/quality.csv"]
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
-    return subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
+    return run_snakemake(
+        "results/texture/quality.csv",
+        workdir=workdir,
+        configfiles=[cfg],
+        cwd=ROOT,
+        env=snakemake_env(OMP_NUM_THREADS="1"),
+        timeout=600,
+        check=False,
+    )
 
 
 def test_workflow_quality_table_warns_then_stops(tmp_path):

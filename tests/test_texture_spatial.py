@@ -16,7 +16,7 @@ def gaussian_acf_field(rows, cols, dx, dy, lx, ly, seed, angle_deg=0.0):
     a = np.radians(angle_deg)
     fu = fx * np.cos(a) + fy * np.sin(a)
     fv = -fx * np.sin(a) + fy * np.cos(a)
-    psd = np.exp(-np.pi**2 * ((lx * fu) ** 2 + (ly * fv) ** 2))
+    psd = np.exp(-(np.pi**2) * ((lx * fu) ** 2 + (ly * fv) ** 2))
     z = np.real(np.fft.ifft2(np.sqrt(psd) * np.exp(2j * np.pi * rng.random((rows, cols)))))
     return z / z.std()
 

@@ -6,8 +6,16 @@ import pytest
 from scipy import ndimage
 
 from skidsim.surface import Surface
-from skidsim.texture import (UNITS, TextureOptions, areal_parameters, campaign_table, characterise,
-                             table4_statistics, texture_table, write_texture_table)
+from skidsim.texture import (
+    UNITS,
+    TextureOptions,
+    areal_parameters,
+    campaign_table,
+    characterise,
+    table4_statistics,
+    texture_table,
+    write_texture_table,
+)
 from skidsim.texture.mpd import MPDResult
 
 
@@ -41,8 +49,11 @@ def test_characterise_small_scan_long_table():
 def test_campaign_table_and_table4(tmp_path):
     params = {"macro": {"Sq": (0.3, "mm")}, "micro": {"Sq": (0.02, "mm")}}
     t1 = texture_table("A", params, MPDResult(0.5, 0.1, 10, 0, 0.55, np.array([0.5])))
-    t2 = texture_table("B", {"macro": {"Sq": (0.5, "mm")}, "micro": {"Sq": (0.04, "mm")}},
-                       MPDResult(0.7, 0.1, 10, 1, 0.77, np.array([0.7])))
+    t2 = texture_table(
+        "B",
+        {"macro": {"Sq": (0.5, "mm")}, "micro": {"Sq": (0.04, "mm")}},
+        MPDResult(0.7, 0.1, 10, 1, 0.77, np.array([0.7])),
+    )
     write_texture_table(t1, tmp_path / "A.parquet")
     back = pd.read_parquet(tmp_path / "A.parquet")
     assert back.shape == t1.shape and not list(tmp_path.glob(".*tmp"))
@@ -61,6 +72,7 @@ def test_campaign_table_and_table4(tmp_path):
 
 def test_options_validation_and_incomplete_surface():
     from skidsim.errors import ConfigError
+
     with pytest.raises(ConfigError, match="unknown key"):
         TextureOptions.from_dict({"pruning": 5})
     with pytest.raises(ConfigError, match="group"):
@@ -78,6 +90,7 @@ def test_options_validation_and_incomplete_surface():
 
 def test_figures_are_written(tmp_path):
     from skidsim.plotting.texture import plot_campaign_distributions, plot_despeckle_comparison, plot_figure7
+
     s = small_scan(rows=40, cols=300)
     plot_figure7(s, s, s, s, tmp_path / "f7.png")
     plot_despeckle_comparison(s.heights[5], 0.05, {"tukey": s.heights[5] * 0}, tmp_path / "d.png")

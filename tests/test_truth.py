@@ -29,6 +29,7 @@ def cfg_with(**effects):
 
 # ------------------------------------------------------------------------------------------------ descriptors
 
+
 def test_mpd_of_a_sine_profile():
     """MSD of a sine of amplitude A is A; the 0.5 mm bin mean scales it by sinc(w / lambda)."""
     dx, lam, amp = 0.05, 10.0, 0.7
@@ -64,6 +65,7 @@ def test_skewness_of_a_two_level_surface():
 
 
 # ------------------------------------------------------------------------------------------------ model
+
 
 def test_null_truth_is_the_exponential_decay_family():
     tr = T.site_truth(DESC, ROW, cfg_with())
@@ -105,7 +107,7 @@ def test_temperature_effect_is_the_configured_wlf_shift():
     order = np.argsort(sw)
     shifts = np.linspace(-0.5, 0.5, 2001)
     sel = sc < 40
-    err = [np.sum((mc[sel] / lc - np.interp(sc[sel] * 10 ** s, sw[order], mw[order] / lw)) ** 2) for s in shifts]
+    err = [np.sum((mc[sel] / lc - np.interp(sc[sel] * 10**s, sw[order], mw[order] / lw)) ** 2) for s in shifts]
     assert shifts[int(np.argmin(err))] == pytest.approx(math.log10(a_c / a_w), abs=0.002)
 
 
@@ -135,14 +137,14 @@ def test_squeeze_drainage_is_quadratic_in_speed_and_floored():
         on = T.site_truth(d, ROW, cfg)
         off = T.site_truth(d, ROW, cfg_with())
         sp = 14.2 + 89.7 * mpd
-        expected = 1.0 - 0.3 * (v ** 2 - 400.0) / sp ** 2
+        expected = 1.0 - 0.3 * (v**2 - 400.0) / sp**2
         assert np.allclose(T.mu_true(v, on) / T.mu_true(v, off), expected, rtol=1e-12)
     # the loss accelerates with speed (concave), unlike the exponential-decay law
-    f = T.drainage_factor(np.array([20.0, 45.0, 70.0]), {"sp_kmh": 60.0, "size": 0.3, "v_ref_kmh": 20.0,
-                                                          "form": "squeeze", "floor": 0.05})
+    f = T.drainage_factor(
+        np.array([20.0, 45.0, 70.0]), {"sp_kmh": 60.0, "size": 0.3, "v_ref_kmh": 20.0, "form": "squeeze", "floor": 0.05}
+    )
     assert f[0] - f[1] < f[1] - f[2]
-    low = T.drainage_factor(300.0, {"sp_kmh": 60.0, "size": 0.3, "v_ref_kmh": 20.0, "form": "squeeze",
-                                    "floor": 0.05})
+    low = T.drainage_factor(300.0, {"sp_kmh": 60.0, "size": 0.3, "v_ref_kmh": 20.0, "form": "squeeze", "floor": 0.05})
     assert low == pytest.approx(0.05)
     with pytest.raises(ConfigError, match="drainage.form"):
         T.check_truth_config({"effects": {"drainage": {"form": "hydro"}}})

@@ -11,28 +11,26 @@ from __future__ import annotations
 import csv
 import hashlib
 import io
-import os
 import re
 import shutil
 import subprocess
-import sys
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT, run_snakemake
 
 from skidsim.cli import main as skidsim
 from skidsim.x3p import read_x3p, write_x3p
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def good(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("matrix") / "good"
-    assert skidsim(["synth", str(out), "--sites", "2", "--shape", "300", "600", "--spacing-mm", "0.2",
-                    "--seed", "3"]) == 0
+    assert (
+        skidsim(["synth", str(out), "--sites", "2", "--shape", "300", "600", "--spacing-mm", "0.2", "--seed", "3"]) == 0
+    )
     return out
 
 
@@ -92,6 +90,7 @@ def all_invalid(c):
     def ch(s):
         s.heights[:] = np.nan
         return s, {"dtype": "I", "z_increment_mm": 0.01}
+
     rewrite_scan(c, ch)
 
 
@@ -101,12 +100,14 @@ def mostly_invalid(c):
         h[np.isnan(h)] = 0.0  # no dropouts left, then 70 % of the columns invalid: exactly 30.0 % valid
         h[:, : int(s.shape[1] * 0.7)] = np.nan
         return s, {"dtype": "I", "z_increment_mm": 0.01}
+
     rewrite_scan(c, ch)
 
 
 def spacing_5mm(c):
     def ch(s):
         return type(s)(s.heights, 5.0, 5.0, name=s.name), {"dtype": "I", "z_increment_mm": 0.01}
+
     rewrite_scan(c, ch)
 
 
@@ -117,6 +118,7 @@ def flip_data_byte(c):
         b = bytearray(b)
         b[100] ^= 0xFF
         return bytes(b)
+
     rewrite_x3p(c / SCAN, members=m)
 
 
@@ -127,6 +129,7 @@ def flip_valid_byte(c):
         b = bytearray(b)
         b[10] ^= 0x01
         return bytes(b)
+
     rewrite_x3p(c / SCAN, members=m)
 
 
@@ -137,18 +140,21 @@ def bad_main_checksum(c):
 def too_short(c):
     def ch(s):
         return type(s)(s.heights[:, :400].copy(), s.dx, s.dy, name=s.name), {"dtype": "I", "z_increment_mm": 0.01}
+
     rewrite_scan(c, ch)
 
 
 def too_narrow(c):
     def ch(s):
         return type(s)(s.heights[:150].copy(), s.dx, s.dy, name=s.name), {"dtype": "I", "z_increment_mm": 0.01}
+
     rewrite_scan(c, ch)
 
 
 def heights_in_um(c):
     def ch(s):
         return type(s)(s.heights * 1000.0, s.dx, s.dy, name=s.name), {"dtype": "D"}
+
     rewrite_scan(c, ch)
 
 
@@ -242,13 +248,15 @@ def edit_sites(c: Path, change):
 def no_section_column(c):
     def ch(rows):
         i = rows[0].index("section")
-        rows[:] = [r[:i] + r[i + 1:] for r in rows]
+        rows[:] = [r[:i] + r[i + 1 :] for r in rows]
+
     edit_sites(c, ch)
 
 
 def fahrenheit(c):
     def ch(rows):
         rows[2][rows[0].index("temperature_c")] = "161.5"
+
     edit_sites(c, ch)
 
 
@@ -288,8 +296,12 @@ FAULTS = [
     ("grid-ragged-row", grid_ragged, None, ["scans/E1-2.csv", "row 3", "2 values"]),
     ("scan-missing", missing_scan, None, ["sites.csv", "row 3", "'scan'", "no file"]),
     ("scan-path-dotdot", scan_outside, None, ["sites.csv", "row 3", "'scan'", "../E1-2.x3p", "inside the campaign"]),
-    ("scan-path-absolute-outside", scan_absolute_outside, None, ["sites.csv", "row 3", "'scan'", "abs.x3p",
-                                                                 "inside the campaign"]),
+    (
+        "scan-path-absolute-outside",
+        scan_absolute_outside,
+        None,
+        ["sites.csv", "row 3", "'scan'", "abs.x3p", "inside the campaign"],
+    ),
     ("dft-path-dotdot", dft_outside, None, ["sites.csv", "row 3", "'dft'", "../E1-2.csv", "inside the campaign"]),
     ("dft-missing", dft_missing, None, ["sites.csv", "row 3", "'dft'", "no file"]),
     ("dft-no-mu-column", dft_missing_mu, None, [DFT, "row 1", "missing mu"]),
@@ -304,23 +316,48 @@ FAULTS = [
     ("sites-fahrenheit", fahrenheit, None, ["sites.csv", "row 3", "'temperature_c'", "161.5"]),
     ("sites-empty", empty_sites, None, ["sites.csv", "row 1", "an empty file"]),
     ("sites-missing", no_sites, None, ["sites.csv", "no such file"]),
-    ("config-speeds-overlap", nothing,
-     lambda c: config_file(c, "speeds: {calibration_kmh: [20, 40, 60], validation_kmh: [30, 40, 70]}\n"),
-     ["bad.yaml", "'speeds.validation_kmh'", "[40] km/h also in speeds.calibration_kmh"]),
-    ("config-speed-repeated", nothing,
-     lambda c: config_file(c, "speeds: {calibration_kmh: [20, 40, 40], validation_kmh: [30, 50, 70]}\n"),
-     ["bad.yaml", "'speeds.calibration_kmh'", "[40] km/h repeated"]),
-    ("config-speed-beyond-traces", nothing,
-     lambda c: config_file(c, "speeds: {calibration_kmh: [20, 40, 60], validation_kmh: [30, 50, 95]}\n"),
-     ["sites.csv", "row 2", "'dft'", "missing 95 km/h"]),
-    ("config-band-below-resolution", nothing,
-     lambda c: config_file(c, "texture: {macro_mm: [0.3, 50.0]}\n"), [SCAN, "'dx_mm'", "texture.macro_mm"]),
-    ("config-band-beyond-scan", nothing,
-     lambda c: config_file(c, "texture: {macro_mm: [0.5, 200.0]}\n"), [SCAN, "'extent_x'", "200 mm"]),
-    ("config-strip-off-scan", nothing,
-     lambda c: config_file(c, "mesh: {x0_mm: 20.0}\n"), [SCAN, "'extent_x'", "from x0 20 mm"]),
-    ("config-mesh-study-site", nothing,
-     lambda c: config_file(c, "mesh_study: {site: E9-9}\n"), ["bad.yaml", "'mesh_study.site'", "E9-9"]),
+    (
+        "config-speeds-overlap",
+        nothing,
+        lambda c: config_file(c, "speeds: {calibration_kmh: [20, 40, 60], validation_kmh: [30, 40, 70]}\n"),
+        ["bad.yaml", "'speeds.validation_kmh'", "[40] km/h also in speeds.calibration_kmh"],
+    ),
+    (
+        "config-speed-repeated",
+        nothing,
+        lambda c: config_file(c, "speeds: {calibration_kmh: [20, 40, 40], validation_kmh: [30, 50, 70]}\n"),
+        ["bad.yaml", "'speeds.calibration_kmh'", "[40] km/h repeated"],
+    ),
+    (
+        "config-speed-beyond-traces",
+        nothing,
+        lambda c: config_file(c, "speeds: {calibration_kmh: [20, 40, 60], validation_kmh: [30, 50, 95]}\n"),
+        ["sites.csv", "row 2", "'dft'", "missing 95 km/h"],
+    ),
+    (
+        "config-band-below-resolution",
+        nothing,
+        lambda c: config_file(c, "texture: {macro_mm: [0.3, 50.0]}\n"),
+        [SCAN, "'dx_mm'", "texture.macro_mm"],
+    ),
+    (
+        "config-band-beyond-scan",
+        nothing,
+        lambda c: config_file(c, "texture: {macro_mm: [0.5, 200.0]}\n"),
+        [SCAN, "'extent_x'", "200 mm"],
+    ),
+    (
+        "config-strip-off-scan",
+        nothing,
+        lambda c: config_file(c, "mesh: {x0_mm: 20.0}\n"),
+        [SCAN, "'extent_x'", "from x0 20 mm"],
+    ),
+    (
+        "config-mesh-study-site",
+        nothing,
+        lambda c: config_file(c, "mesh_study: {site: E9-9}\n"),
+        ["bad.yaml", "'mesh_study.site'", "E9-9"],
+    ),
 ]
 
 
@@ -393,9 +430,18 @@ def test_traceback_only_when_asked(good, tmp_path, capsys, monkeypatch):
     assert rc == 2 and "Traceback" in err
 
 
-@pytest.mark.parametrize("text,ok", [("scans/a.x3p", True), ("./scans/../scans/a.x3p", True), ("../a.x3p", False),
-                                     ("scans/../../a.x3p", False), ("/elsewhere/a.x3p", False),
-                                     ("/data/camp/scans/a.x3p", True), ("/data/campaign2/a.x3p", False)])
+@pytest.mark.parametrize(
+    "text,ok",
+    [
+        ("scans/a.x3p", True),
+        ("./scans/../scans/a.x3p", True),
+        ("../a.x3p", False),
+        ("scans/../../a.x3p", False),
+        ("/elsewhere/a.x3p", False),
+        ("/data/camp/scans/a.x3p", True),
+        ("/data/campaign2/a.x3p", False),
+    ],
+)
 def test_inside_is_lexical(text, ok):
     from skidsim.validate import inside
 
@@ -416,18 +462,20 @@ def test_levels_trade_checks_for_time(good, tmp_path, capsys):
 
 # ---------------------------------------------------------------------------------------- through Snakemake
 def snakemake(workdir: Path, campaign: Path, *args, configfiles=()) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "--directory", str(workdir),
-           "--configfile", str(ROOT / "config" / "config.yaml"), *map(str, configfiles), "--cores", "1",
-           "--config", f"campaign={campaign}", *args]
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    return subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=workdir, timeout=300)
+    return run_snakemake(
+        "--config", f"campaign={campaign}", *args, workdir=workdir, configfiles=configfiles, timeout=300, check=False
+    )
 
 
-@pytest.mark.parametrize("build,culprit", [
-    (site_space, ["sites.csv", "row 3", "'site'", "E1 2"]),
-    (scan_outside, ["sites.csv", "row 3", "'scan'", "../E1-2.x3p"]),
-    (dft_short, ["'dft'", "missing 70"]),
-], ids=["site-id-space", "path-dotdot", "dft-short"])
+@pytest.mark.parametrize(
+    "build,culprit",
+    [
+        (site_space, ["sites.csv", "row 3", "'site'", "E1 2"]),
+        (scan_outside, ["sites.csv", "row 3", "'scan'", "../E1-2.x3p"]),
+        (dft_short, ["'dft'", "missing 70"]),
+    ],
+    ids=["site-id-space", "path-dotdot", "dft-short"],
+)
 def test_dry_run_refuses_a_bad_campaign_when_the_plan_is_built(build, culprit, good, tmp_path):
     camp = clone(good, tmp_path)
     build(camp)
@@ -464,6 +512,6 @@ def test_first_rule_reports_scan_contents_once_at_the_end(good, tmp_path):
     text = r.stdout + r.stderr
     assert r.returncode == 1
     assert "Traceback" not in text
-    tail = text[text.rindex("skidsim: 1 job(s) stopped on bad input"):]
+    tail = text[text.rindex("skidsim: 1 job(s) stopped on bad input") :]
     assert "logs/validate_campaign.log" in tail and SCAN in tail and "0.0% valid" in tail
     assert text.count("0.0% valid") == 2  # the failed job's log (Snakemake's show-failed-logs) and the summary

@@ -52,6 +52,7 @@ def with_xml(path, out, edit):
 
 # ---------------------------------------------------------------- round trips
 
+
 def test_roundtrip_D_within_one_ulp_and_nan_mask(tmp_path):
     s = scan()
     p = tmp_path / "a.x3p"
@@ -119,6 +120,7 @@ def test_integer_offset_used_when_range_exceeds_int16(tmp_path):
 
 # ---------------------------------------------------------------- archive layout (independent decoding)
 
+
 def test_archive_layout_metres_x_fastest_and_checksum_of_main_xml(tmp_path):
     h = np.arange(6, dtype=float).reshape(2, 3) * 0.25  # rows = y (2), cols = x (3)
     p = tmp_path / "lay.x3p"
@@ -143,7 +145,7 @@ def test_valid_bin_bit_order_lsb_first_one_is_valid(tmp_path):
     vb = members(p)["bindata/valid.bin"]
     bits = np.ones(16, dtype=int)
     bits[[0, 3, 9, 14, 15]] = 0  # bit 15 is padding beyond 15 points
-    expected = bytes([sum(int(b) << k for k, b in enumerate(bits[i:i + 8])) for i in (0, 8)])
+    expected = bytes([sum(int(b) << k for k, b in enumerate(bits[i : i + 8])) for i in (0, 8)])
     assert vb == expected == bytes([0b11110110, 0b00111101])
 
 
@@ -156,8 +158,13 @@ def test_deterministic_bytes_given_date(tmp_path):
 
 
 def test_record2_metadata_roundtrip(tmp_path):
-    meta = {**DATE, "InstrumentManufacturer": "HyMIT", "InstrumentModel": "LS-40",
-            "ProbingSystemType": "NonContacting", "Comment": "site E1-1"}
+    meta = {
+        **DATE,
+        "InstrumentManufacturer": "HyMIT",
+        "InstrumentModel": "LS-40",
+        "ProbingSystemType": "NonContacting",
+        "Comment": "site E1-1",
+    }
     p = tmp_path / "m.x3p"
     write_x3p(p, scan(), meta=meta)
     r = read_x3p(p)
@@ -218,6 +225,7 @@ def test_integer_file_without_valid_bin_or_z_scale_is_all_valid_metres(tmp_path)
 
 # ---------------------------------------------------------------- errors
 
+
 def make(tmp_path, dtype="D"):
     p = tmp_path / "good.x3p"
     write_x3p(p, scan(), dtype=dtype, z_increment_mm=0.01 if dtype in "IL" else None, meta=DATE)
@@ -272,15 +280,22 @@ def test_not_a_zip_and_missing_main_xml_and_missing_file(tmp_path):
         read_x3p(tmp_path / "absent.x3p")
 
 
-@pytest.mark.parametrize("old,new,match", [
-    ("<FeatureType>SUR</FeatureType>", "<FeatureType>PRF</FeatureType>", "FeatureType SUR"),
-    ("<CX>\n        <AxisType>I</AxisType>", "<CX>\n        <AxisType>A</AxisType>", "AxisType I"),
-    ("<DataType>D</DataType>\n        <Increment>1", "<DataType>Q</DataType>\n        <Increment>1", "DataType one of"),
-    ("<SizeZ>1</SizeZ>", "<SizeZ>2</SizeZ>", "SizeZ 1"),
-])
+@pytest.mark.parametrize(
+    "old,new,match",
+    [
+        ("<FeatureType>SUR</FeatureType>", "<FeatureType>PRF</FeatureType>", "FeatureType SUR"),
+        ("<CX>\n        <AxisType>I</AxisType>", "<CX>\n        <AxisType>A</AxisType>", "AxisType I"),
+        (
+            "<DataType>D</DataType>\n        <Increment>1",
+            "<DataType>Q</DataType>\n        <Increment>1",
+            "DataType one of",
+        ),
+        ("<SizeZ>1</SizeZ>", "<SizeZ>2</SizeZ>", "SizeZ 1"),
+    ],
+)
 def test_unsupported_header_features(tmp_path, old, new, match):
     p = make(tmp_path)
-    bad = with_xml(p, tmp_path / "feat.x3p", lambda x: (x.replace(old, new, 1) if old in x else pytest.fail(old)))
+    bad = with_xml(p, tmp_path / "feat.x3p", lambda x: x.replace(old, new, 1) if old in x else pytest.fail(old))
     with pytest.raises(ScanFormatError, match=match) as ei:
         read_x3p_header(bad)
     assert "feat.x3p" in str(ei.value)
@@ -289,9 +304,13 @@ def test_unsupported_header_features(tmp_path, old, new, match):
 def test_wrong_data_type_for_data_size(tmp_path):
     """main.xml says F (4 bytes) but data.bin holds D (8 bytes): a size mismatch, named as such."""
     p = make(tmp_path)
-    bad = with_xml(p, tmp_path / "dt.x3p",
-                   lambda x: x.replace("<DataType>D</DataType>\n        <Increment>1", "<DataType>F</DataType>\n"
-                                       "        <Increment>1"))
+    bad = with_xml(
+        p,
+        tmp_path / "dt.x3p",
+        lambda x: x.replace(
+            "<DataType>D</DataType>\n        <Increment>1", "<DataType>F</DataType>\n        <Increment>1"
+        ),
+    )
     with pytest.raises(ScanFormatError, match="type F"):
         read_x3p_header(bad)
 
@@ -304,6 +323,7 @@ def test_writer_argument_errors(tmp_path):
 
 
 # ---------------------------------------------------------------- peer: surfalize (test-only, GPL)
+
 
 @pytest.mark.peer
 @pytest.mark.parametrize("dtype", ["I", "L", "F", "D"])
@@ -347,17 +367,20 @@ def test_we_read_surfacetopography_files_md5_of_data_bin(tmp_path):
     assert (hdr.size_x, hdr.size_y, hdr.dtype) == (14, 9, "D")
 
 
-@pytest.mark.parametrize("content, ok", [
-    ("{xml_md5} *main.xml\n", True),            # openGPS library / md5sum binary mode
-    ("{XML_MD5}  main.xml\r\n", True),          # md5sum text mode, upper case, CRLF
-    ("{xml_md5}", True),                         # bare digest of main.xml
-    ("{bin_md5}", True),                         # bare digest of the point data
-    ("{BIN_MD5} *bindata/data.bin\n", True),     # SurfaceTopography
-    ("{bin_md5} *main.xml\n", False),            # names main.xml, holds the data's digest
-    ("{xml_md5} *bindata/data.bin\n", False),    # names the data, holds main.xml's digest
-    ("{xml_md5} *bindata/other.bin\n", False),   # names a member that is not there
-    ("0123456789abcdef0123456789abcdef\n", False),
-])
+@pytest.mark.parametrize(
+    "content, ok",
+    [
+        ("{xml_md5} *main.xml\n", True),  # openGPS library / md5sum binary mode
+        ("{XML_MD5}  main.xml\r\n", True),  # md5sum text mode, upper case, CRLF
+        ("{xml_md5}", True),  # bare digest of main.xml
+        ("{bin_md5}", True),  # bare digest of the point data
+        ("{BIN_MD5} *bindata/data.bin\n", True),  # SurfaceTopography
+        ("{bin_md5} *main.xml\n", False),  # names main.xml, holds the data's digest
+        ("{xml_md5} *bindata/data.bin\n", False),  # names the data, holds main.xml's digest
+        ("{xml_md5} *bindata/other.bin\n", False),  # names a member that is not there
+        ("0123456789abcdef0123456789abcdef\n", False),
+    ],
+)
 def test_checksum_conventions_of_real_writers(tmp_path, content, ok):
     p = make(tmp_path)
     m = members(p)
@@ -375,8 +398,10 @@ def test_datalist_text_points(tmp_path):
     """Points stored as text in main.xml (Record3/DataList) instead of data.bin; empty Datum = invalid."""
     xml = HAND_XML.replace("<DataType>L</DataType>{zscale}", "<DataType>D</DataType>")
     xml = xml.replace("<SizeX>4</SizeX><SizeY>2</SizeY>", "<SizeX>3</SizeX><SizeY>1</SizeY>")
-    xml = xml.replace("<DataLink><PointDataLink>bindata/data.bin</PointDataLink>{valid}</DataLink>",
-                      "<DataList><Datum>1e-3</Datum><Datum></Datum><Datum>-2.5e-4</Datum></DataList>").encode()
+    xml = xml.replace(
+        "<DataLink><PointDataLink>bindata/data.bin</PointDataLink>{valid}</DataLink>",
+        "<DataList><Datum>1e-3</Datum><Datum></Datum><Datum>-2.5e-4</Datum></DataList>",
+    ).encode()
     p = tmp_path / "list.x3p"
     with zipfile.ZipFile(p, "w") as zf:
         zf.writestr("main.xml", xml)

@@ -81,8 +81,12 @@ class Campaign:
 
 
 def _collected(sites_csv: Path, errors: list[InputError]) -> CampaignError:
-    err = CampaignError(sites_csv, "a campaign without problems", got=f"{len(errors)} problem(s)",
-                        hint="all listed below; fix them and load again")
+    err = CampaignError(
+        sites_csv,
+        "a campaign without problems",
+        got=f"{len(errors)} problem(s)",
+        hint="all listed below; fix them and load again",
+    )
     err.args = (str(err) + "\n" + "\n".join(f"  - {e}" for e in errors),)
     err.errors = errors
     return err
@@ -111,8 +115,11 @@ def site_rows(directory) -> list[tuple[int, dict[str, str]]]:
     if not records:
         return []
     header = [c.strip() for c in records[0][1]]
-    return [(line, dict(zip(header, (f.strip() for f in fields)))) for line, fields in records[1:]
-            if any(f.strip() for f in fields)]
+    return [
+        (line, dict(zip(header, (f.strip() for f in fields))))
+        for line, fields in records[1:]
+        if any(f.strip() for f in fields)
+    ]
 
 
 def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header", allow_outside=True) -> Campaign:
@@ -140,8 +147,9 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
         reader = csv.reader(fh)
         records = [(reader.line_num, row) for row in reader]
     if not records:
-        raise CampaignError(sites_csv, f"a header row with columns {', '.join(REQUIRED_COLUMNS)}", row=1,
-                            got="an empty file")
+        raise CampaignError(
+            sites_csv, f"a header row with columns {', '.join(REQUIRED_COLUMNS)}", row=1, got="an empty file"
+        )
     header = [c.strip() for c in records[0][1]]
     errors: list[InputError] = []
     for j, name in enumerate(header):
@@ -151,8 +159,15 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
             errors.append(CampaignError(sites_csv, "unique column names", row=1, column=name, got="a duplicate"))
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     if missing:
-        errors.append(CampaignError(sites_csv, f"required columns {', '.join(REQUIRED_COLUMNS)}", row=1,
-                                    got=",".join(header), hint=f"missing {', '.join(missing)}"))
+        errors.append(
+            CampaignError(
+                sites_csv,
+                f"required columns {', '.join(REQUIRED_COLUMNS)}",
+                row=1,
+                got=",".join(header),
+                hint=f"missing {', '.join(missing)}",
+            )
+        )
     if errors:
         raise _collected(sites_csv, errors)
     col = {name: j for j, name in enumerate(header)}
@@ -163,8 +178,11 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
         if not any(f.strip() for f in fields):
             continue
         if len(fields) != len(header):
-            errors.append(CampaignError(sites_csv, f"{len(header)} fields as in the header", row=line,
-                                        got=f"{len(fields)} fields"))
+            errors.append(
+                CampaignError(
+                    sites_csv, f"{len(header)} fields as in the header", row=line, got=f"{len(fields)} fields"
+                )
+            )
             continue
         rec = {name: fields[j].strip() for name, j in col.items()}
         raw = dict(rec)  # as written, for messages
@@ -174,14 +192,28 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
             errors.append(CampaignError(sites_csv, "a site id", row=line, column="site", got=""))
             ok = False
         elif not SITE_ID_PATTERN.match(site):
-            errors.append(CampaignError(sites_csv, "a site id of letters, digits, '_', '.', '-' starting with a "
-                                        "letter or digit (used in file names and workflow wildcards)",
-                                        row=line, column="site", got=site))
+            errors.append(
+                CampaignError(
+                    sites_csv,
+                    "a site id of letters, digits, '_', '.', '-' starting with a "
+                    "letter or digit (used in file names and workflow wildcards)",
+                    row=line,
+                    column="site",
+                    got=site,
+                )
+            )
             ok = False
         elif site.lower() in seen:
-            errors.append(CampaignError(sites_csv, "a unique site id (case-insensitive: ids become file names)",
-                                        row=line, column="site", got=site,
-                                        hint=f"already used in row {seen[site.lower()]}"))
+            errors.append(
+                CampaignError(
+                    sites_csv,
+                    "a unique site id (case-insensitive: ids become file names)",
+                    row=line,
+                    column="site",
+                    got=site,
+                    hint=f"already used in row {seen[site.lower()]}",
+                )
+            )
             ok = False
         else:
             seen[site.lower()] = line
@@ -195,12 +227,20 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
             errors.append(CampaignError(sites_csv, "a number (degrees C)", row=line, column="temperature_c", got=t))
         else:
             if not math.isfinite(tc):
-                errors.append(CampaignError(sites_csv, "a finite number (degrees C)", row=line,
-                                            column="temperature_c", got=t))
+                errors.append(
+                    CampaignError(sites_csv, "a finite number (degrees C)", row=line, column="temperature_c", got=t)
+                )
             elif not (TEMPERATURE_RANGE_C[0] <= tc <= TEMPERATURE_RANGE_C[1]):
-                errors.append(CampaignError(sites_csv, f"a temperature between {TEMPERATURE_RANGE_C[0]:g} and "
-                                            f"{TEMPERATURE_RANGE_C[1]:g} degrees C", row=line,
-                                            column="temperature_c", got=tc, hint="Fahrenheit or Kelvin?"))
+                errors.append(
+                    CampaignError(
+                        sites_csv,
+                        f"a temperature between {TEMPERATURE_RANGE_C[0]:g} and {TEMPERATURE_RANGE_C[1]:g} degrees C",
+                        row=line,
+                        column="temperature_c",
+                        got=tc,
+                        hint="Fahrenheit or Kelvin?",
+                    )
+                )
         rec["temperature_c"] = tc
         for kind in ("scan", "dft"):
             if not rec[kind]:
@@ -209,13 +249,23 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
                 continue
             p = _resolve(directory, rec[kind])
             if not allow_outside and _outside(directory, rec[kind]):
-                errors.append(CampaignError(sites_csv, f"a {kind} path inside the campaign directory {directory} "
-                                            "(config ingest.allow_outside_campaign: true, or skidsim validate "
-                                            "--allow-outside, accepts others)", row=line, column=kind,
-                                            got=rec[kind]))
+                errors.append(
+                    CampaignError(
+                        sites_csv,
+                        f"a {kind} path inside the campaign directory {directory} "
+                        "(config ingest.allow_outside_campaign: true, or skidsim validate "
+                        "--allow-outside, accepts others)",
+                        row=line,
+                        column=kind,
+                        got=rec[kind],
+                    )
+                )
             elif not p.is_file():
-                errors.append(CampaignError(sites_csv, f"an existing {kind} file", row=line, column=kind,
-                                            got=rec[kind], hint=f"no file {p}"))
+                errors.append(
+                    CampaignError(
+                        sites_csv, f"an existing {kind} file", row=line, column=kind, got=rec[kind], hint=f"no file {p}"
+                    )
+                )
             rec[kind] = str(p)
         rows.append((rec, ok, raw))
         line_of.append(line)
@@ -229,22 +279,30 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
             try:
                 check_scan(scan, level=check_scans)
             except InputError as exc:
-                errors.append(CampaignError(sites_csv, "a readable scan", row=line, column="scan",
-                                            got=raw["scan"], hint=str(exc)))
+                errors.append(
+                    CampaignError(sites_csv, "a readable scan", row=line, column="scan", got=raw["scan"], hint=str(exc))
+                )
         if dft is not None and dft.is_file():
             try:
                 tr = read_dft(dft)
             except DftError as exc:
-                errors.append(CampaignError(sites_csv, "a valid DFT trace", row=line, column="dft",
-                                            got=raw["dft"], hint=str(exc)))
+                errors.append(
+                    CampaignError(sites_csv, "a valid DFT trace", row=line, column="dft", got=raw["dft"], hint=str(exc))
+                )
                 continue
             if not tr.covers(speeds):
                 lo, hi = tr.range_kmh
                 need = [v for v in speeds if not lo <= v <= hi]
-                errors.append(CampaignError(sites_csv, f"a DFT trace covering {min(speeds):g}-{max(speeds):g} km/h",
-                                            row=line, column="dft", got=raw["dft"],
-                                            hint=f"{dft} spans {lo:g}-{hi:g} km/h, missing "
-                                                 f"{', '.join(f'{v:g}' for v in need)} km/h"))
+                errors.append(
+                    CampaignError(
+                        sites_csv,
+                        f"a DFT trace covering {min(speeds):g}-{max(speeds):g} km/h",
+                        row=line,
+                        column="dft",
+                        got=raw["dft"],
+                        hint=f"{dft} spans {lo:g}-{hi:g} km/h, missing {', '.join(f'{v:g}' for v in need)} km/h",
+                    )
+                )
                 continue
             if ok:
                 traces[rec["site"]] = tr
@@ -263,5 +321,11 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
             sites[c] = pd.to_numeric(vals.where(vals != "", None), errors="coerce").astype(float)
         else:
             sites[c] = vals.astype(object)
-    return Campaign(directory=directory, sites=sites, metadata_columns=metadata_columns, speeds_kmh=speeds,
-                    traces=traces, rows={rec["site"]: line for (rec, _, _), line in zip(rows, line_of)})
+    return Campaign(
+        directory=directory,
+        sites=sites,
+        metadata_columns=metadata_columns,
+        speeds_kmh=speeds,
+        traces=traces,
+        rows={rec["site"]: line for (rec, _, _), line in zip(rows, line_of)},
+    )

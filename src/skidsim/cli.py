@@ -1,11 +1,11 @@
 """The ``skidsim`` command: work without Snakemake.
 
-    skidsim validate CAMPAIGN_DIR                 check a campaign against the data contract
-    skidsim texture SCAN [-o OUT.parquet|.csv]    areal parameters of one scan (raw, macro, micro) and MPD
-    skidsim mpd PROFILE [-o SEGMENTS.csv]         mean profile depth (ISO 13473-1) of a text line profile
-    skidsim simulate SCAN --speed 40 --mu-s .. --mu-k .. --alpha ..   one FE simulation: SN, trace, VTU
-    skidsim synth OUT_DIR [--sites N] [--generator default|chips|spectral]
-                                                  write a synthetic campaign (scans, DFT, sites.csv, truth)
+skidsim validate CAMPAIGN_DIR                 check a campaign against the data contract
+skidsim texture SCAN [-o OUT.parquet|.csv]    areal parameters of one scan (raw, macro, micro) and MPD
+skidsim mpd PROFILE [-o SEGMENTS.csv]         mean profile depth (ISO 13473-1) of a text line profile
+skidsim simulate SCAN --speed 40 --mu-s .. --mu-k .. --alpha ..   one FE simulation: SN, trace, VTU
+skidsim synth OUT_DIR [--sites N] [--generator default|chips|spectral]
+                                              write a synthetic campaign (scans, DFT, sites.csv, truth)
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def _cmd_validate(args) -> int:
     import yaml
 
     from . import validate
-    from .workflow_support import merged
+    from .config import merged
 
     config: dict = {}
     for path in args.configfile or []:
@@ -33,8 +33,9 @@ def _cmd_validate(args) -> int:
             with open(path, encoding="utf-8") as fh:
                 config = merged(config, yaml.safe_load(fh) or {})
         except (OSError, yaml.YAMLError) as exc:
-            raise validate.ConfigProblem(path, "a readable YAML config file", got=f"{type(exc).__name__}: {exc}") \
-                from None
+            raise validate.ConfigProblem(
+                path, "a readable YAML config file", got=f"{type(exc).__name__}: {exc}"
+            ) from None
     if args.speeds:  # one list: the trace must cover all of them; the config's own split is kept otherwise
         config = merged(config, {"speeds": {"calibration_kmh": args.speeds, "validation_kmh": []}})
     if args.allow_outside:
@@ -49,8 +50,10 @@ def _cmd_validate(args) -> int:
         print(validate.format_problems(found), file=sys.stderr)
         return 2
     sites = camp.sites
-    print(f"{args.campaign}: OK, {len(sites)} sites in {sites['section'].nunique()} sections "
-          f"(level {args.level}, {time.perf_counter() - t0:.1f} s)")
+    print(
+        f"{args.campaign}: OK, {len(sites)} sites in {sites['section'].nunique()} sections "
+        f"(level {args.level}, {time.perf_counter() - t0:.1f} s)"
+    )
     print(f"metadata columns: {', '.join(camp.metadata_columns) or '(none)'}")
     print(f"temperature: {sites['temperature_c'].min():.1f} .. {sites['temperature_c'].max():.1f} deg C")
     return 0
@@ -94,22 +97,41 @@ def _cmd_mpd(args) -> int:
     from .texture.mpd import MPDOptions, profile_segments, summarise
 
     prof = read_profile(args.profile, distance_col=args.distance_col, height_col=args.height_col)
-    opts = MPDOptions(segment_mm=args.segment_mm, spike_alpha=args.spike_alpha, detect_plates=args.detect_plates,
-                      plate_threshold_mm=args.plate_threshold_mm, max_dropout_pct=args.max_dropout_pct)
+    opts = MPDOptions(
+        segment_mm=args.segment_mm,
+        spike_alpha=args.spike_alpha,
+        detect_plates=args.detect_plates,
+        plate_threshold_mm=args.plate_threshold_mm,
+        max_dropout_pct=args.max_dropout_pct,
+    )
     segs = profile_segments(prof.height_mm, prof.distance_mm, opts)
-    res = summarise(segs, name=Path(args.profile).name, segment_mm=args.segment_mm,
-                    profile_mm=float(prof.distance_mm[-1] - prof.distance_mm[0]))
+    res = summarise(
+        segs,
+        name=Path(args.profile).name,
+        segment_mm=args.segment_mm,
+        profile_mm=float(prof.distance_mm[-1] - prof.distance_mm[0]),
+    )
     n_valid = res.n_segments - res.n_invalid_segments
-    print(f"MPD {_fmt_mm(res.mpd_mm)} mm, SD {_fmt_mm(res.sd_mm)} mm, {n_valid} valid segment"
-          f"{'' if n_valid == 1 else 's'}, {res.n_invalid_segments} invalid segment"
-          f"{'' if res.n_invalid_segments == 1 else 's'}; ETD {_fmt_mm(res.etd_mm)} mm")
-    trim = [f"{lab} {v:.3f} mm" for lab, v in (("starts at", segs.trim_start_mm[0]), ("ends at", segs.trim_end_mm[0]))
-            if v == v]
-    print(f"{prof.path}: {len(prof.distance_mm)} samples, {prof.distance_mm[0]:g} .. {prof.distance_mm[-1]:g} mm, "
-          f"{prof.n_dropouts} dropouts; columns {prof.columns[0]!r}, {prof.columns[1]!r}"
-          + (f"; plates detected: profile {', '.join(trim)}" if trim else "")
-          + ("; distances below 0 belong to no segment (segments are (0, L], (L, 2L], ...)"
-             if prof.distance_mm[0] < 0 else ""))
+    print(
+        f"MPD {_fmt_mm(res.mpd_mm)} mm, SD {_fmt_mm(res.sd_mm)} mm, {n_valid} valid segment"
+        f"{'' if n_valid == 1 else 's'}, {res.n_invalid_segments} invalid segment"
+        f"{'' if res.n_invalid_segments == 1 else 's'}; ETD {_fmt_mm(res.etd_mm)} mm"
+    )
+    trim = [
+        f"{lab} {v:.3f} mm"
+        for lab, v in (("starts at", segs.trim_start_mm[0]), ("ends at", segs.trim_end_mm[0]))
+        if v == v
+    ]
+    print(
+        f"{prof.path}: {len(prof.distance_mm)} samples, {prof.distance_mm[0]:g} .. {prof.distance_mm[-1]:g} mm, "
+        f"{prof.n_dropouts} dropouts; columns {prof.columns[0]!r}, {prof.columns[1]!r}"
+        + (f"; plates detected: profile {', '.join(trim)}" if trim else "")
+        + (
+            "; distances below 0 belong to no segment (segments are (0, L], (L, 2L], ...)"
+            if prof.distance_mm[0] < 0
+            else ""
+        )
+    )
     if args.output:
         frame = segs.to_frame().drop(columns="profile")
         frame.insert(0, "segment", range(1, len(frame) + 1))
@@ -133,12 +155,12 @@ def _strip_length(text: str) -> float | str:
 
 def _cmd_simulate(args) -> int:
     from . import texture
+    from .config import solver_config
     from .friction import ExponentialDecay
     from .reconstruct import pavement_strip
     from .runlog import Progress
     from .scans import read_scan
     from .solver import simulate
-    from .workflow_support import solver_config
 
     surface = read_scan(args.scan)
     clean, _ = texture.despeckle(surface)  # the default rule (local), as the workflow
@@ -146,17 +168,26 @@ def _cmd_simulate(args) -> int:
     pav = pavement_strip(clean, length_mm=args.length_mm, resolution_mm=args.resolution_mm)
     cfg = solver_config({"preset": args.preset, "load_n": args.load_n, "overrides": {}})
     law = ExponentialDecay(args.mu_s, args.mu_k, args.alpha)
-    res = simulate(pav, args.speed, law, cfg, trace_path=args.trace, vtu_dir=args.vtu,
-                   progress=Progress(1, f"simulate {args.speed} km/h", log))
-    print(f"SN = {res.sn:.4f} at {args.speed} km/h (mu({args.speed} km/h) = {float(law.mu_kmh(args.speed)):.4f}); "
-          f"{res.n_steps} steps of {res.dt_s * 1e6:.3f} us in {res.wall_s:.1f} s")
+    res = simulate(
+        pav,
+        args.speed,
+        law,
+        cfg,
+        trace_path=args.trace,
+        vtu_dir=args.vtu,
+        progress=Progress(1, f"simulate {args.speed} km/h", log),
+    )
+    print(
+        f"SN = {res.sn:.4f} at {args.speed} km/h (mu({args.speed} km/h) = {float(law.mu_kmh(args.speed)):.4f}); "
+        f"{res.n_steps} steps of {res.dt_s * 1e6:.3f} us in {res.wall_s:.1f} s"
+    )
     return 0
 
 
 def _cmd_synth(args) -> int:
     from . import synthetic
+    from .config import merged
     from .runlog import Progress
-    from .workflow_support import merged
 
     if args.generator != "default":
         return _cmd_synth_independent(args)
@@ -175,8 +206,12 @@ def _cmd_synth(args) -> int:
     prog = Progress(len(design), "synthetic sites", log, every_s=0)
     for n, (_, row) in enumerate(design.iterrows(), 1):
         data = synthetic.generate_site(row, cfg)
-        synthetic.write_site(data, out / "scans" / f"{row['site']}.x3p", out / "dft" / f"{row['site']}.csv",
-                             truth_dir / f"{row['site']}.json")
+        synthetic.write_site(
+            data,
+            out / "scans" / f"{row['site']}.x3p",
+            out / "dft" / f"{row['site']}.csv",
+            truth_dir / f"{row['site']}.json",
+        )
         prog(n)
     synthetic.write_sites_csv(design, out, out / "sites.csv")
     print(f"wrote {len(design)} sites to {out} (truth in {truth_dir})")
@@ -206,54 +241,99 @@ def _cmd_synth_independent(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="skidsim", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    p.add_argument("-v", "--verbose", action="store_true",
-                   help="more log output, and the Python traceback of an error (also SKIDSIM_DEBUG=1)")
+    p = argparse.ArgumentParser(
+        prog="skidsim",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__,
+    )
+    p.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="more log output, and the Python traceback of an error (also SKIDSIM_DEBUG=1)",
+    )
     sub = p.add_subparsers(dest="command", required=True)
 
     v = sub.add_parser("validate", help="check a campaign directory against the data contract")
     v.add_argument("campaign", help="directory holding sites.csv")
-    v.add_argument("--configfile", action="append", metavar="YAML",
-                   help="workflow config file(s) whose speeds, strip, texture band and ingest keys to check against "
-                        "(repeatable, merged in order over the defaults of config/config.yaml)")
-    v.add_argument("--speeds", type=float, nargs="+",
-                   help="speeds in km/h every DFT trace must cover (default: the config's calibration and "
-                        "validation speeds, 20..70)")
-    v.add_argument("--level", "--check-scans", dest="level", choices=["full", "header", "table"], default="full",
-                   help="full (default): decode every scan (checksums, valid share, heights); header: scan "
-                        "headers only (spacing, extent, Z increment); table: sites.csv, paths and DFT traces only")
-    v.add_argument("--allow-outside", action="store_true",
-                   help="accept scan/DFT paths outside the campaign directory")
+    v.add_argument(
+        "--configfile",
+        action="append",
+        metavar="YAML",
+        help="workflow config file(s) whose speeds, strip, texture band and ingest keys to check against "
+        "(repeatable, merged in order over the defaults of config/config.yaml)",
+    )
+    v.add_argument(
+        "--speeds",
+        type=float,
+        nargs="+",
+        help="speeds in km/h every DFT trace must cover (default: the config's calibration and "
+        "validation speeds, 20..70)",
+    )
+    v.add_argument(
+        "--level",
+        "--check-scans",
+        dest="level",
+        choices=["full", "header", "table"],
+        default="full",
+        help="full (default): decode every scan (checksums, valid share, heights); header: scan "
+        "headers only (spacing, extent, Z increment); table: sites.csv, paths and DFT traces only",
+    )
+    v.add_argument("--allow-outside", action="store_true", help="accept scan/DFT paths outside the campaign directory")
     v.set_defaults(func=_cmd_validate)
 
     t = sub.add_parser("texture", help="areal texture parameters of one scan (raw, macro, micro) and MPD")
     t.add_argument("scan", help="X3P or grid text scan")
     t.add_argument("-o", "--output", help="write the long table to .parquet or .csv")
-    t.add_argument("--despeckle", choices=["local", "mad", "tukey", "study"], default="local",
-                   help="despeckle rule (default local: isolated 2-D outliers, right on flat-binder scans; mad and "
-                        "tukey: per-row fences; study = the literal limiting filter)")
-    t.add_argument("--macro-mm", type=float, nargs=2, default=[0.5, 50.0], metavar=("LOW", "HIGH"),
-                   help="macrotexture wavelength band in mm (default 0.5 50)")
+    t.add_argument(
+        "--despeckle",
+        choices=["local", "mad", "tukey", "study"],
+        default="local",
+        help="despeckle rule (default local: isolated 2-D outliers, right on flat-binder scans; mad and "
+        "tukey: per-row fences; study = the literal limiting filter)",
+    )
+    t.add_argument(
+        "--macro-mm",
+        type=float,
+        nargs=2,
+        default=[0.5, 50.0],
+        metavar=("LOW", "HIGH"),
+        help="macrotexture wavelength band in mm (default 0.5 50)",
+    )
     t.add_argument("-q", "--quiet", action="store_true", help="do not print the table")
     t.set_defaults(func=_cmd_texture)
 
-    m = sub.add_parser("mpd", help="mean profile depth (ISO 13473-1:2019, as captif-slp) of a text line profile",
-                       description="MPD of a line profile: a text file with a header block of any length and "
-                       "delimited columns of distance and height in mm (NaN, empty or non-numeric heights are "
-                       "dropouts). Prints 'MPD <value> mm, SD <value> mm, <n> valid segments, <n> invalid "
-                       "segments'.")
+    m = sub.add_parser(
+        "mpd",
+        help="mean profile depth (ISO 13473-1:2019, as captif-slp) of a text line profile",
+        description="MPD of a line profile: a text file with a header block of any length and "
+        "delimited columns of distance and height in mm (NaN, empty or non-numeric heights are "
+        "dropouts). Prints 'MPD <value> mm, SD <value> mm, <n> valid segments, <n> invalid "
+        "segments'.",
+    )
     m.add_argument("profile", help="text profile (.csv, .txt, .dat; tab, ';', ',' or space delimited)")
     m.add_argument("--distance-col", help="distance column: name or 0-based index (default: by name, else 0)")
     m.add_argument("--height-col", help="height column: name or 0-based index (default: by name, else 1)")
-    m.add_argument("--spike-alpha", type=float, default=3.0,
-                   help="spike threshold factor: a step >= alpha x 0.5 mm is a spike (ISO 13473-1; default 3)")
-    m.add_argument("--detect-plates", action="store_true",
-                   help="exclude reference plates at the ends of the run (heights above --plate-threshold-mm)")
+    m.add_argument(
+        "--spike-alpha",
+        type=float,
+        default=3.0,
+        help="spike threshold factor: a step >= alpha x 0.5 mm is a spike (ISO 13473-1; default 3)",
+    )
+    m.add_argument(
+        "--detect-plates",
+        action="store_true",
+        help="exclude reference plates at the ends of the run (heights above --plate-threshold-mm)",
+    )
     m.add_argument("--plate-threshold-mm", type=float, default=30.0, help="plate height threshold in mm (default 30)")
     m.add_argument("--segment-mm", type=float, default=100.0, help="segment length in mm (default 100)")
-    m.add_argument("--max-dropout-pct", type=float, default=10.0,
-                   help="a segment with more dropouts than this %% is invalid (default 10)")
+    m.add_argument(
+        "--max-dropout-pct",
+        type=float,
+        default=10.0,
+        help="a segment with more dropouts than this %% is invalid (default 10)",
+    )
     m.add_argument("-o", "--output", help="write each segment (start, end, MSD, dropouts, spikes, valid) to CSV")
     m.set_defaults(func=_cmd_mpd)
 
@@ -266,8 +346,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--preset", choices=["campaign", "reference", "quick"], default="campaign")
     s.add_argument("--load-n", type=float, default=11.8, help="normal load in N (default 11.8)")
     s.add_argument("--resolution-mm", type=float, default=0.5, help="pavement FE resolution in mm")
-    s.add_argument("--length-mm", type=_strip_length, default=114.3,
-                   help="pavement strip length in mm (default 114.3), or auto: the scan's length up to 114.3 mm")
+    s.add_argument(
+        "--length-mm",
+        type=_strip_length,
+        default=114.3,
+        help="pavement strip length in mm (default 114.3), or auto: the scan's length up to 114.3 mm",
+    )
     s.add_argument("--trace", help="write the force trace to this parquet file")
     s.add_argument("--vtu", help="write a decimated VTU series of the slider into this directory")
     s.set_defaults(func=_cmd_simulate)
@@ -279,9 +363,13 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--shape", type=int, nargs=2, metavar=("ROWS", "COLS"), help="scan size in points")
     g.add_argument("--spacing-mm", type=float, help="lateral spacing in mm")
     g.add_argument("--truth-dir", help="where the ground truth goes (default: OUT_DIR-truth beside it)")
-    g.add_argument("--generator", choices=["default", "chips", "spectral"], default="default",
-                   help="default: skidsim.synthetic (the study-like campaign); chips, spectral: the independent "
-                        "generators of skidsim.generators (docs/synthetic-campaign.md)")
+    g.add_argument(
+        "--generator",
+        choices=["default", "chips", "spectral"],
+        default="default",
+        help="default: skidsim.synthetic (the study-like campaign); chips, spectral: the independent "
+        "generators of skidsim.generators (docs/synthetic-campaign.md)",
+    )
     g.set_defaults(func=_cmd_synth)
     return p
 
@@ -293,8 +381,11 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(argv)
     debug = args.verbose or os.environ.get("SKIDSIM_DEBUG", "") not in ("", "0")
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
-                        format="%(asctime)s %(levelname)s %(message)s", stream=sys.stderr)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO,
+        format="%(asctime)s %(levelname)s %(message)s",
+        stream=sys.stderr,
+    )
     try:
         return args.func(args)
     except (SkidsimError, FileNotFoundError) as e:

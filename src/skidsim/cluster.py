@@ -93,9 +93,14 @@ def parse_scontrol_job(text: str) -> Grant:
     mem = tres.get("mem") or fields.get("MinMemoryNode")
     if mem is None:
         raise ClusterError(f"scontrol show job {fields['JobId']}: neither TRES mem= nor MinMemoryNode")
-    return Grant(job_id=fields["JobId"], state=fields["JobState"], cpus=int(tres.get("cpu", fields["NumCPUs"])),
-                 mem_mb=mem_to_mb(mem, f"memory of job {fields['JobId']}"),
-                 time_limit_min=time_to_min(fields["TimeLimit"]), comment=fields.get("Comment", ""))
+    return Grant(
+        job_id=fields["JobId"],
+        state=fields["JobState"],
+        cpus=int(tres.get("cpu", fields["NumCPUs"])),
+        mem_mb=mem_to_mb(mem, f"memory of job {fields['JobId']}"),
+        time_limit_min=time_to_min(fields["TimeLimit"]),
+        comment=fields.get("Comment", ""),
+    )
 
 
 def parse_sacct(text: str) -> list[Grant]:
@@ -107,9 +112,16 @@ def parse_sacct(text: str) -> list[Grant]:
         f = line.split("|")
         if len(f) < 6:
             raise ClusterError(f"sacct: expected 6 '|'-separated fields, found {line!r}")
-        grants.append(Grant(job_id=f[0], state=f[1].split()[0], cpus=int(f[2]),
-                            mem_mb=mem_to_mb(f[3], f"sacct ReqMem of job {f[0]}"),
-                            time_limit_min=time_to_min(f[4]), comment="|".join(f[5:])))
+        grants.append(
+            Grant(
+                job_id=f[0],
+                state=f[1].split()[0],
+                cpus=int(f[2]),
+                mem_mb=mem_to_mb(f[3], f"sacct ReqMem of job {f[0]}"),
+                time_limit_min=time_to_min(f[4]),
+                comment="|".join(f[5:]),
+            )
+        )
     return grants
 
 
@@ -118,7 +130,7 @@ def rule_of(comment: str) -> str:
     'rule_<group>_<members...>' -> the group's name is left to the caller (returned whole, without 'rule_')."""
     if not comment.startswith("rule_"):
         raise ClusterError(f"job comment {comment!r}: expected 'rule_<rule>...' as the SLURM executor writes it")
-    return comment[len("rule_"):].split("_wildcards_")[0]
+    return comment[len("rule_") :].split("_wildcards_")[0]
 
 
 def _run(cmd: list[str]) -> str:
@@ -141,8 +153,20 @@ def granted(job_id: str) -> Grant:
 
 def granted_sacct(job_ids: list[str]) -> list[Grant]:
     """The same from the accounting database (needs slurmdbd)."""
-    return parse_sacct(_run(["sacct", "-X", "-P", "-n", "-j", ",".join(job_ids),
-                             "-o", "JobIDRaw,State,AllocCPUS,ReqMem,Timelimit,Comment%200"]))
+    return parse_sacct(
+        _run(
+            [
+                "sacct",
+                "-X",
+                "-P",
+                "-n",
+                "-j",
+                ",".join(job_ids),
+                "-o",
+                "JobIDRaw,State,AllocCPUS,ReqMem,Timelimit,Comment%200",
+            ]
+        )
+    )
 
 
 def caps(node_list: list[Node]) -> tuple[int, int]:
@@ -154,8 +178,10 @@ def caps(node_list: list[Node]) -> tuple[int, int]:
 
 def main(argv: list[str]) -> int:
     if argv[:1] != ["caps"]:
-        print("usage: python -m skidsim.cluster caps   # prints --cores N --resources mem_mb=M for snakemake",
-              file=sys.stderr)
+        print(
+            "usage: python -m skidsim.cluster caps   # prints --cores N --resources mem_mb=M for snakemake",
+            file=sys.stderr,
+        )
         return 2
     cpus, mem = caps(nodes())
     print(f"--cores {cpus} --resources mem_mb={mem}")

@@ -54,7 +54,7 @@ class DftTrace:
         object.__setattr__(self, "mu", m)
 
     @classmethod
-    def from_samples(cls, speeds_kmh, mu, path: str = "<dft>") -> "DftTrace":
+    def from_samples(cls, speeds_kmh, mu, path: str = "<dft>") -> DftTrace:
         """Sort samples by speed and average the mu of equal speeds."""
         s = np.asarray(speeds_kmh, dtype=float)
         m = np.asarray(mu, dtype=float)
@@ -80,9 +80,13 @@ class DftTrace:
         lo, hi = self.range_kmh
         bad = v[~((v >= lo) & (v <= hi))]
         if bad.size:
-            raise DftError(self.path, f"speeds within the trace's covered range {lo:g}-{hi:g} km/h",
-                           column=SPEED_COLUMN, got=float(bad.ravel()[0]),
-                           hint="the trace does not reach this speed; no extrapolation")
+            raise DftError(
+                self.path,
+                f"speeds within the trace's covered range {lo:g}-{hi:g} km/h",
+                column=SPEED_COLUMN,
+                got=float(bad.ravel()[0]),
+                hint="the trace does not reach this speed; no extrapolation",
+            )
         return v
 
     def at(self, speeds_kmh) -> np.ndarray:
@@ -107,9 +111,13 @@ class DftTrace:
             hi = np.searchsorted(s, vi + window_kmh, side="right")
             ss, mm = s[lo:hi], m[lo:hi]
             if ss.size < 2:
-                raise DftError(self.path, f"samples at 2 or more speeds within +-{window_kmh:g} km/h of "
-                               f"{vi:g} km/h", column=SPEED_COLUMN, got=f"{ss.size} sample(s)",
-                               hint="widen window_kmh")
+                raise DftError(
+                    self.path,
+                    f"samples at 2 or more speeds within +-{window_kmh:g} km/h of {vi:g} km/h",
+                    column=SPEED_COLUMN,
+                    got=f"{ss.size} sample(s)",
+                    hint="widen window_kmh",
+                )
             sc = ss - vi
             sbar, mbar = sc.mean(), mm.mean()
             sxx = np.sum((sc - sbar) ** 2)
@@ -148,8 +156,13 @@ def read_dft(path) -> DftTrace:
                 header = [f.strip() for f in fields]
                 missing = [c for c in (SPEED_COLUMN, MU_COLUMN) if c not in header]
                 if missing:
-                    raise DftError(path, f"a header with columns {SPEED_COLUMN} and {MU_COLUMN}", row=1,
-                                   got=",".join(header), hint=f"missing {', '.join(missing)}")
+                    raise DftError(
+                        path,
+                        f"a header with columns {SPEED_COLUMN} and {MU_COLUMN}",
+                        row=1,
+                        got=",".join(header),
+                        hint=f"missing {', '.join(missing)}",
+                    )
                 i_s, i_m = header.index(SPEED_COLUMN), header.index(MU_COLUMN)
                 continue
             if not any(f.strip() for f in fields):
@@ -161,8 +174,13 @@ def read_dft(path) -> DftTrace:
             if s < 0:
                 raise DftError(path, "a speed >= 0 km/h", row=row, column=SPEED_COLUMN, got=s)
             if not (MU_RANGE[0] < m < MU_RANGE[1]):
-                raise DftError(path, f"a friction coefficient between {MU_RANGE[0]:g} and {MU_RANGE[1]:g} "
-                               "(exclusive)", row=row, column=MU_COLUMN, got=m)
+                raise DftError(
+                    path,
+                    f"a friction coefficient between {MU_RANGE[0]:g} and {MU_RANGE[1]:g} (exclusive)",
+                    row=row,
+                    column=MU_COLUMN,
+                    got=m,
+                )
             speeds.append(s)
             mus.append(m)
     if header is None:

@@ -16,8 +16,16 @@ class InputError(SkidsimError):
     that do not apply are left out. The parts are kept as attributes for tests and tools.
     """
 
-    def __init__(self, file: str | Path | None, expected: str, *, row: int | None = None,
-                 column: str | None = None, got: object = None, hint: str | None = None):
+    def __init__(
+        self,
+        file: str | Path | None,
+        expected: str,
+        *,
+        row: int | None = None,
+        column: str | None = None,
+        got: object = None,
+        hint: str | None = None,
+    ):
         self.file = None if file is None else str(file)
         self.row = row
         self.column = column

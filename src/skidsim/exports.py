@@ -11,7 +11,7 @@ Pavement solid: the heightfield's nodes on top of a flat bottom at ``Heightfield
 is the node grid split into two triangles per cell along the (i, j)-(i+1, j+1) diagonal; the hexahedral
 meshes (msh, VTU, inp) have bilinear top faces through the same nodes.
 
-Every writer writes to a temporary file in the target directory and renames it at the end.
+Every writer goes through :mod:`skidsim.atomic` (a temporary sibling renamed to the final name at the end).
 """
 
 from __future__ import annotations
@@ -20,18 +20,16 @@ import os
 import re
 import shutil
 import subprocess
-import tempfile
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_path, write_text
 from .errors import InputError, SkidsimError
 from .friction import ExponentialDecay, kmh_to_ms
-from .reconstruct import Heightfield
+from .reconstruct import Heightfield, MeshOptions
 from .slidermesh import SliderMesh
-from .runlog import honour_umask
 
 _UNIT_SCALE = {"mm": 1e3, "m": 1.0}
 
@@ -50,23 +48,6 @@ def _scale(unit: str) -> float:
     if unit not in _UNIT_SCALE:
         raise InputError(None, "unit 'mm' or 'm'", column="unit", got=unit)
     return _UNIT_SCALE[unit]
-
-
-@contextmanager
-def _atomic(path: str | Path, suffix: str | None = None):
-    """Yield a temporary path next to ``path`` (same suffix unless given) and rename it on success."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + path.stem + ".", suffix=suffix or path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp)
-    try:
-        yield tmp
-        honour_umask(tmp)  # mkstemp made it 0600; exports are shared like any other file the user writes
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 # ---------------------------------------------------------------------- pavement geometry
@@ -131,16 +112,28 @@ def pavement_hex_mesh(hf: Heightfield, layers: int = 1) -> tuple[np.ndarray, np.
     nid = np.arange(pts.shape[0]).reshape(layers + 1, ny, nx)
     k, i, j = np.meshgrid(np.arange(layers), np.arange(ny - 1), np.arange(nx - 1), indexing="ij")
     k, i, j = k.ravel(), i.ravel(), j.ravel()
-    hexes = np.column_stack([nid[k, i, j], nid[k, i, j + 1], nid[k, i + 1, j + 1], nid[k, i + 1, j],
-                             nid[k + 1, i, j], nid[k + 1, i, j + 1], nid[k + 1, i + 1, j + 1], nid[k + 1, i + 1, j]])
+    hexes = np.column_stack(
+        [
+            nid[k, i, j],
+            nid[k, i, j + 1],
+            nid[k, i + 1, j + 1],
+            nid[k, i + 1, j],
+            nid[k + 1, i, j],
+            nid[k + 1, i, j + 1],
+            nid[k + 1, i + 1, j + 1],
+            nid[k + 1, i + 1, j],
+        ]
+    )
     return pts, hexes
 
 
 def hex_volumes(points: np.ndarray, hexes: np.ndarray) -> np.ndarray:
     """Volumes of trilinear hexahedra (C3D8 order) by 2x2x2 Gauss quadrature of det J (exact)."""
     g = 1.0 / np.sqrt(3.0)
-    corners = np.array([(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1),
-                        (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)], dtype=float)
+    corners = np.array(
+        [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)],
+        dtype=float,
+    )
     P = points[hexes]  # (M, 8, 3)
     vol = np.zeros(len(hexes))
     for xi in (-g, g):
@@ -169,7 +162,7 @@ def write_stl(hf: Heightfield, path: str | Path, unit: str = "mm") -> Path:
     if not mesh.is_watertight:
         raise SkidsimError(f"{hf.name or 'heightfield'}: pavement surface mesh is not watertight")
     path = Path(path)
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         mesh.export(tmp, file_type="stl")
     return path
 
@@ -182,13 +175,18 @@ def write_vtu_pavement(hf: Heightfield, path: str | Path, layers: int = 1, unit:
     pts, hexes = pavement_hex_mesh(hf, layers)
     mesh = meshio.Mesh(pts * s, [("hexahedron", hexes)], point_data={"height_mm": pts[:, 2] * 1e3})
     path = Path(path)
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
     return path
 
 
-def write_vtu_slider(mesh: SliderMesh, path: str | Path, point_data: dict | None = None,
-                     displacement_m: np.ndarray | None = None, unit: str = "mm") -> Path:
+def write_vtu_slider(
+    mesh: SliderMesh,
+    path: str | Path,
+    point_data: dict | None = None,
+    displacement_m: np.ndarray | None = None,
+    unit: str = "mm",
+) -> Path:
     """Write the slider hex mesh to VTU (meshio); ``point_data`` arrays have ``n_nodes`` rows.
 
     ``displacement_m`` (``(n_nodes, 3)`` m, optional) moves the points to the deformed configuration and
@@ -202,8 +200,9 @@ def write_vtu_slider(mesh: SliderMesh, path: str | Path, point_data: dict | None
     for name, arr in (point_data or {}).items():
         arr = np.asarray(arr)
         if arr.shape[0] != mesh.n_nodes:
-            raise InputError(None, f"{mesh.n_nodes} rows (one per slider node)", column=f"point_data[{name!r}]",
-                             got=arr.shape)
+            raise InputError(
+                None, f"{mesh.n_nodes} rows (one per slider node)", column=f"point_data[{name!r}]", got=arr.shape
+            )
         data[name] = arr
     if displacement_m is not None:
         u = np.asarray(displacement_m, dtype=float)
@@ -213,13 +212,12 @@ def write_vtu_slider(mesh: SliderMesh, path: str | Path, point_data: dict | None
         data["displacement_m"] = u
     m = meshio.Mesh(pts * s, [("hexahedron", mesh.connectivity)], point_data=data)
     path = Path(path)
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         meshio.write(tmp, m, file_format="vtu")
     return path
 
 
-def write_gmsh(hf: Heightfield, path: str | Path, layers: int = 4, unit: str = "mm",
-               stride: int = 1) -> Path:
+def write_gmsh(hf: Heightfield, path: str | Path, layers: int = 4, unit: str = "mm", stride: int = 1) -> Path:
     """Write a hexahedral volume mesh of the pavement solid to a gmsh .msh (format 4.1) via the gmsh API.
 
     The structured mesh of :func:`pavement_hex_mesh` (``layers`` through the thickness; ``stride`` > 1 keeps
@@ -240,7 +238,7 @@ def write_gmsh(hf: Heightfield, path: str | Path, layers: int = 4, unit: str = "
     ntop = (ny - 1) * (nx - 1)
     top_quads = hexes[-ntop:, 4:8]
     path = Path(path)
-    with _atomic(path, suffix=".msh") as tmp:
+    with atomic_path(path, suffix=".msh") as tmp:
         gmsh.initialize(interruptible=False)
         try:
             gmsh.option.setNumber("General.Terminal", 0)
@@ -249,8 +247,9 @@ def write_gmsh(hf: Heightfield, path: str | Path, layers: int = 4, unit: str = "
             srf = gmsh.model.addDiscreteEntity(2)
             gmsh.model.mesh.addNodes(3, vol, np.arange(1, len(pts) + 1), (pts * s).ravel())
             gmsh.model.mesh.addElementsByType(vol, 5, np.arange(1, len(hexes) + 1), (hexes + 1).ravel())
-            gmsh.model.mesh.addElementsByType(srf, 3, np.arange(len(hexes) + 1, len(hexes) + ntop + 1),
-                                              (top_quads + 1).ravel())
+            gmsh.model.mesh.addElementsByType(
+                srf, 3, np.arange(len(hexes) + 1, len(hexes) + ntop + 1), (top_quads + 1).ravel()
+            )
             gmsh.model.addPhysicalGroup(3, [vol], 1, name="pavement")
             gmsh.model.addPhysicalGroup(2, [srf], 2, name="top")
             gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
@@ -299,7 +298,7 @@ def _fmt_rows(ids: np.ndarray, arr: np.ndarray, fmt: str = "%.10e") -> str:
 
 def _id_lines(ids, per_line: int = 12) -> str:
     ids = [str(int(i)) for i in ids]
-    return "\n".join(", ".join(ids[k:k + per_line]) for k in range(0, len(ids), per_line)) + "\n"
+    return "\n".join(", ".join(ids[k : k + per_line]) for k in range(0, len(ids), per_line)) + "\n"
 
 
 def slider_placement(slider: SliderMesh, hf: Heightfield, center_xy_m=None, overclosure_m: float = 1e-6):
@@ -313,28 +312,50 @@ def slider_placement(slider: SliderMesh, hf: Heightfield, center_xy_m=None, over
     L, W, _ = slider.size_m
     ox = center_xy_m[0] - (slider.origin[0] + 0.5 * L)
     oy = center_xy_m[1] - (slider.origin[1] + 0.5 * W)
-    if center_xy_m[0] - 0.5 * L < x0 - 1e-12 or center_xy_m[0] + 0.5 * L > x1 + 1e-12 or \
-            center_xy_m[1] - 0.5 * W < y0 - 1e-12 or center_xy_m[1] + 0.5 * W > y1 + 1e-12:
-        raise InputError(hf.name or None, "a slider footprint inside the pavement extent", column="center_xy_m",
-                         got=tuple(center_xy_m))
+    if (
+        center_xy_m[0] - 0.5 * L < x0 - 1e-12
+        or center_xy_m[0] + 0.5 * L > x1 + 1e-12
+        or center_xy_m[1] - 0.5 * W < y0 - 1e-12
+        or center_xy_m[1] + 0.5 * W > y1 + 1e-12
+    ):
+        raise InputError(
+            hf.name or None,
+            "a slider footprint inside the pavement extent",
+            column="center_xy_m",
+            got=tuple(center_xy_m),
+        )
     b = slider.points[slider.bottom_nodes()]
     zs = hf.bilinear(b[:, 0] + ox, b[:, 1] + oy)
     oz = float(zs.max()) - overclosure_m - slider.origin[2]
     return (float(ox), float(oy), oz)
 
 
-def write_inp(path: str | Path, slider: SliderMesh, heightfield: Heightfield, law: ExponentialDecay,
-              load_n: float = DFT_LOAD_N, speed_kmh: float = 20.0, step: str = "static", *,
-              dialect: str = "calculix", holder: str = "rigid", center_xy_m=None,
-              slide_distance_m: float | None = None, penalty_pa_per_m: float | None = None,
-              overclosure_m: float = 1e-6, contact: str = "node to surface",
-              material: dict | None = None, element_type: str = "C3D8R", title: str | None = None) -> InpDeck:
+def write_inp(
+    path: str | Path,
+    slider: SliderMesh,
+    heightfield: Heightfield,
+    law: ExponentialDecay,
+    load_n: float = DFT_LOAD_N,
+    speed_kmh: float = 20.0,
+    step: str = "static",
+    *,
+    dialect: str = "calculix",
+    holder: str = "rigid",
+    center_xy_m=None,
+    slide_distance_m: float | None = None,
+    penalty_pa_per_m: float | None = None,
+    overclosure_m: float = 1e-6,
+    contact: str = "node to surface",
+    material: dict | None = None,
+    element_type: str = "C3D8R",
+    title: str | None = None,
+) -> InpDeck:
     """Write an ABAQUS/CalculiX input deck of the DFT slider on the pavement (SI: m, N, Pa, kg/m^3, s).
 
-    Model: the slider (``SliderMesh``, ``element_type`` C3D8R (study) or C3D8, linear elastic rubber E 100 MPa, nu 0.45, rho 1200 kg/m^3)
-    placed by :func:`slider_placement`; the pavement as one layer of C3D8 elements between ``z_bottom_m``
-    and the heightfield nodes, every node fixed (a rigid body without rigid-body machinery); a penalty
-    contact pair (slave: slider bottom face S1, master: pavement top face S2,
+    Model: the slider (``SliderMesh``, ``element_type`` C3D8R (study) or C3D8, linear elastic rubber E 100 MPa,
+    nu 0.45, rho 1200 kg/m^3) placed by :func:`slider_placement`; the pavement as one layer of C3D8 elements
+    between ``z_bottom_m`` and the heightfield nodes, every node fixed (a rigid body without rigid-body machinery);
+    a penalty contact pair (slave: slider bottom face S1, master: pavement top face S2,
     ``*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR`` with slope ``penalty_pa_per_m``, default
     ``10 E / h_z`` of the slider).
 
@@ -375,8 +396,12 @@ def write_inp(path: str | Path, slider: SliderMesh, heightfield: Heightfield, la
         if center_xy_m is None:
             center_xy_m = (x0 + 0.5 * L, 0.5 * (y0 + y1))
         if center_xy_m[0] + 0.5 * L + slide_distance_m > x1 + 1e-9:
-            raise InputError(hf.name or None, "a slide that keeps the slider on the pavement",
-                             column="slide_distance_m", got=slide_distance_m)
+            raise InputError(
+                hf.name or None,
+                "a slide that keeps the slider on the pavement",
+                column="slide_distance_m",
+                got=slide_distance_m,
+            )
         if not v_ms > 0:
             raise InputError(None, "a positive sliding speed in km/h", column="speed_kmh", got=speed_kmh)
     off = slider_placement(slider, hf, center_xy_m, overclosure_m)
@@ -406,7 +431,10 @@ def write_inp(path: str | Path, slider: SliderMesh, heightfield: Heightfield, la
     w("*HEADING\n")
     w((title or f"skidsim DFT model: {hf.name or 'pavement'}, {step} step, {dialect} dialect") + "\n")
     w("** Units: m, N, Pa, kg/m^3, s. Written by skidsim.exports.write_inp.\n")
-    w(f"** Slider {slider.nx}x{slider.ny}x{slider.nz} {element_type}, offset (m) {off[0]:.6e} {off[1]:.6e} {off[2]:.6e}\n")
+    w(
+        f"** Slider {slider.nx}x{slider.ny}x{slider.nz} {element_type}, "
+        f"offset (m) {off[0]:.6e} {off[1]:.6e} {off[2]:.6e}\n"
+    )
     w("*NODE, NSET=SLIDER_ALL\n")
     w(_fmt_rows(s_ids, sp))
     w("*NODE, NSET=PAVE_ALL\n")
@@ -424,8 +452,11 @@ def write_inp(path: str | Path, slider: SliderMesh, heightfield: Heightfield, la
     w(f"*NSET, NSET=REF\n{ref}\n")
     w("*SURFACE, NAME=SLIDER_FACE, TYPE=ELEMENT\nSLIDER_BOTTOM_EL, S1\n")
     w("*SURFACE, NAME=PAVE_FACE, TYPE=ELEMENT\nPAVEMENT, S2\n")
-    w("*MATERIAL, NAME=RUBBER\n*ELASTIC\n{:.6e}, {:.6g}\n*DENSITY\n{:.6g}\n".format(
-        mat["E_pa"], mat["nu"], mat["rho_kg_m3"]))
+    w(
+        "*MATERIAL, NAME=RUBBER\n*ELASTIC\n{:.6e}, {:.6g}\n*DENSITY\n{:.6g}\n".format(
+            mat["E_pa"], mat["nu"], mat["rho_kg_m3"]
+        )
+    )
     w("** Pavement material: irrelevant (all pavement nodes are fixed).\n")
     w("*MATERIAL, NAME=PAVE\n*ELASTIC\n2.0e10, 0.3\n*DENSITY\n2400.\n")
     w("*SOLID SECTION, ELSET=SLIDER, MATERIAL=RUBBER\n")
@@ -435,12 +466,15 @@ def write_inp(path: str | Path, slider: SliderMesh, heightfield: Heightfield, la
         w("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=HARD\n")
     else:
         # CalculiX: slope K (Pa/m) and, for node-to-surface, the tension at large clearance sigma_inf (Pa).
-        w(f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{kpen:.6e}, 1.0\n" if dialect == "calculix"
-          else f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{kpen:.6e}\n")
+        w(
+            f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{kpen:.6e}, 1.0\n"
+            if dialect == "calculix"
+            else f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{kpen:.6e}\n"
+        )
     mu_eq = None
     if step == "dynamic":
         if dialect == "abaqus":
-            w("*FRICTION, EXPONENTIAL DECAY\n{:.8g}, {:.8g}, {:.8g}\n".format(law.mu_s, law.mu_k, law.alpha))
+            w(f"*FRICTION, EXPONENTIAL DECAY\n{law.mu_s:.8g}, {law.mu_k:.8g}, {law.alpha:.8g}\n")
         else:
             mu_eq = float(law.mu(v_ms))
             w("** CalculiX has no EXPONENTIAL DECAY friction: constant mu = mu(v) at the sliding speed.\n")
@@ -461,37 +495,52 @@ def write_inp(path: str | Path, slider: SliderMesh, heightfield: Heightfield, la
             w(f"2\n{int(n)}, 3, 1.0, {ref}, 3, -1.0\n")
     if step == "dynamic":
         T = slide_distance_m / v_ms
-        w("*AMPLITUDE, NAME=SLIDE\n0.0, 0.0, {:.10e}, 1.0\n".format(T))
+        w(f"*AMPLITUDE, NAME=SLIDE\n0.0, 0.0, {T:.10e}, 1.0\n")
         w("*INITIAL CONDITIONS, TYPE=VELOCITY\n")
         w(_fmt_rows(s_ids, np.column_stack([np.ones(ns), np.full(ns, v_ms)]), "%.10g"))
     w("*STEP, INC=1000\n" if step == "static" else "*STEP, INC=100000000\n")
     if step == "static":
         w("*STATIC\n0.25, 1.0, 1e-6, 1.0\n")
     else:
-        w("*DYNAMIC, EXPLICIT\n{:.6e}, {:.10e}\n".format(1e-7, slide_distance_m / v_ms))
+        w(f"*DYNAMIC, EXPLICIT\n{1e-7:.6e}, {slide_distance_m / v_ms:.10e}\n")
         w(f"*BOUNDARY, AMPLITUDE=SLIDE\nSLIDER_TOP, 1, 1, {slide_distance_m:.10e}\n")
     w("*CLOAD\n")
     if holder == "rigid":
         w(f"{ref}, 3, {-load_n:.10e}\n")
     else:
-        w(_fmt_rows(top_ids, np.column_stack([np.full(len(top_ids), 3), -load_n * trib / trib.sum()]),
-                    "%.10g"))
+        w(_fmt_rows(top_ids, np.column_stack([np.full(len(top_ids), 3), -load_n * trib / trib.sum()]), "%.10g"))
     if dialect == "calculix" or step == "static":
         w("*NODE PRINT, NSET=PAVE_ALL, TOTALS=ONLY\nRF\n")
         w("*NODE PRINT, NSET=SLIDER_ALL\nU\n")
         w("*CONTACT PRINT\nCSTR\n" if dialect == "calculix" else "*CONTACT PRINT\nCSTRESS\n")
         w("*NODE FILE\nU\n")
     else:
-        w("*OUTPUT, HISTORY, TIME INTERVAL={:.6e}\n*NODE OUTPUT, NSET=SLIDER_TOP\nRF1, RF3, U1, U3\n".format(
-            slide_distance_m / v_ms / 200))
+        w(
+            f"*OUTPUT, HISTORY, TIME INTERVAL={slide_distance_m / v_ms / 200:.6e}\n"
+            "*NODE OUTPUT, NSET=SLIDER_TOP\nRF1, RF3, U1, U3\n"
+        )
     w("*END STEP\n")
     text = "".join(out)
     path = Path(path)
-    with _atomic(path) as tmp:
-        tmp.write_text(text)
-    return InpDeck(path, step, dialect, holder, s_ids, p_ids, ref, off, slider.bottom_nodes() + 1, trib,
-                   float(load_n), kpen, mu_eq,
-                   v_ms if step == "dynamic" else None, slide_distance_m, tuple(notes))
+    write_text(path, text)
+    return InpDeck(
+        path,
+        step,
+        dialect,
+        holder,
+        s_ids,
+        p_ids,
+        ref,
+        off,
+        slider.bottom_nodes() + 1,
+        trib,
+        float(load_n),
+        kpen,
+        mu_eq,
+        v_ms if step == "dynamic" else None,
+        slide_distance_m,
+        tuple(notes),
+    )
 
 
 # ---------------------------------------------------------------------- CalculiX runner
@@ -535,8 +584,7 @@ def parse_dat(path: str | Path) -> dict:
         text = path.read_text()
     except OSError as exc:
         raise CalculixError(f"{path}: cannot read CalculiX output ({exc})") from None
-    head = re.compile(r"^\s*(total force|displacements|contact stress)\b.*time\s+(" + _FLOAT + r")\s*$",
-                      re.IGNORECASE)
+    head = re.compile(r"^\s*(total force|displacements|contact stress)\b.*time\s+(" + _FLOAT + r")\s*$", re.IGNORECASE)
     blocks: dict[str, tuple[float, list[list[float]]]] = {}
     cur = None
     t_last = None
@@ -571,8 +619,14 @@ def parse_dat(path: str | Path) -> dict:
     return out
 
 
-def run_calculix(inp_path: str | Path, workdir: str | Path | None = None, deck: InpDeck | None = None,
-                 ccx: str = "ccx", timeout_s: float = 600.0, threads: int = 1) -> CalculixResult:
+def run_calculix(
+    inp_path: str | Path,
+    workdir: str | Path | None = None,
+    deck: InpDeck | None = None,
+    ccx: str = "ccx",
+    timeout_s: float = 600.0,
+    threads: int = 1,
+) -> CalculixResult:
     """Run CalculiX on ``inp_path`` in ``workdir`` (default: the deck's directory) and parse its ``.dat``.
 
     Raises :class:`CalculixError` when ``ccx`` is missing, fails, reports an ``*ERROR`` or does not finish.
@@ -592,16 +646,16 @@ def run_calculix(inp_path: str | Path, workdir: str | Path | None = None, deck: 
         shutil.copyfile(inp_path, target)
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads))
     try:
-        proc = subprocess.run([exe, "-i", job], cwd=workdir, env=env, capture_output=True, text=True,
-                              timeout=timeout_s)
+        proc = subprocess.run([exe, "-i", job], cwd=workdir, env=env, capture_output=True, text=True, timeout=timeout_s)
     except subprocess.TimeoutExpired:
         raise CalculixError(f"{inp_path}: CalculiX did not finish within {timeout_s} s") from None
     log = proc.stdout + proc.stderr
-    (workdir / (job + ".log")).write_text(log)
+    write_text(workdir / (job + ".log"), log)
     errors = [ln.strip() for ln in log.splitlines() if "*ERROR" in ln]
     if proc.returncode != 0 or errors or "Job finished" not in log:
-        raise CalculixError(f"{inp_path}: CalculiX failed (exit {proc.returncode}): "
-                            + ("; ".join(errors[:3]) or log[-500:]))
+        raise CalculixError(
+            f"{inp_path}: CalculiX failed (exit {proc.returncode}): " + ("; ".join(errors[:3]) or log[-500:])
+        )
     res = parse_dat(workdir / (job + ".dat"))
     if res["total_force"] is None:
         raise CalculixError(f"{workdir / (job + '.dat')}: no 'total force' table (NODE PRINT TOTALS=ONLY RF)")
@@ -621,9 +675,17 @@ def run_calculix(inp_path: str | Path, workdir: str | Path | None = None, deck: 
     return CalculixResult(res["time"], f, f[2], cn, cs[:, 0].copy(), area, ids, u, su, workdir, log)
 
 
-def write_model_bundle(hf: Heightfield, slider: SliderMesh, law: ExponentialDecay, outdir: str | Path, *,
-                       load_n: float = DFT_LOAD_N, speed_kmh: float = 20.0, gmsh_layers: int = 4,
-                       unit: str = "mm") -> dict[str, Path]:
+def write_model_bundle(
+    hf: Heightfield,
+    slider: SliderMesh,
+    law: ExponentialDecay,
+    outdir: str | Path,
+    *,
+    load_n: float = DFT_LOAD_N,
+    speed_kmh: float = MeshOptions.inp_speed_kmh,
+    gmsh_layers: int = MeshOptions.gmsh_layers,
+    unit: str = "mm",
+) -> dict[str, Path]:
     """Write every export of one site's FE model into ``outdir``; returns ``{kind: path}``.
 
     Files: ``pavement.npz`` (the heightfield, SI), ``pavement.stl``, ``pavement.msh``, ``pavement.vtu``,
@@ -640,8 +702,11 @@ def write_model_bundle(hf: Heightfield, slider: SliderMesh, law: ExponentialDeca
         "vtu_pavement": write_vtu_pavement(hf, out / "pavement.vtu", unit=unit),
         "vtu_slider": write_vtu_slider(slider, out / "slider.vtu", unit=unit),
     }
-    for key, step, dialect in (("inp_static", "static", "calculix"), ("inp_dynamic_calculix", "dynamic", "calculix"),
-                               ("inp_dynamic_abaqus", "dynamic", "abaqus")):
+    for key, step, dialect in (
+        ("inp_static", "static", "calculix"),
+        ("inp_dynamic_calculix", "dynamic", "calculix"),
+        ("inp_dynamic_abaqus", "dynamic", "abaqus"),
+    ):
         name = f"dft_{step}_{dialect}.inp"
         paths[key] = write_inp(out / name, slider, hf, law, load_n, speed_kmh, step, dialect=dialect).path
     return paths

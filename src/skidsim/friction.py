@@ -13,7 +13,7 @@ exp(-1.11) = 0.33, at 60 km/h exp(-3.33) = 0.036.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, asdict
+from dataclasses import asdict, dataclass
 
 import numpy as np
 

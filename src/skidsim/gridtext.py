@@ -13,8 +13,8 @@ are invalid points (NaN).
 
 ``.xyz`` files: three columns ``x y z`` in mm (comma or whitespace separated, ``#`` comment lines ignored),
 points of a regular grid in any order. The spacing is inferred (the median gap between distinct coordinates,
-else the smallest gap, refined by least squares) and every coordinate must lie within 1 % of a spacing from a grid line; grid
-positions without a point, and ``z`` = ``nan``, are invalid. The first grid line is the origin
+else the smallest gap, refined by least squares) and every coordinate must lie within 1 % of a spacing from a grid
+line; grid positions without a point, and ``z`` = ``nan``, are invalid. The first grid line is the origin
 (``Surface.meta["x0_mm"]``, ``["y0_mm"]``).
 """
 
@@ -24,12 +24,16 @@ import io
 import json
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from skidsim.atomic import write_bytes
 from skidsim.errors import ScanFormatError
 from skidsim.surface import Surface
-from skidsim.x3p import atomic_write_bytes
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 UNIT_TO_MM = {"mm": 1.0, "um": 1e-3, "µm": 1e-3, "m": 1e3}
 _TOKEN = re.compile(r"([A-Za-z_]+)\s*[=:]\s*([^\s,;]+)")
@@ -72,12 +76,14 @@ def _spacing(path: Path, keys: dict) -> tuple[float, float, float]:
             except (TypeError, ValueError):
                 raise ScanFormatError(sidecar, "a number of mm", column=key, got=side[key]) from None
             if val is not None and not np.isclose(val, sval, rtol=1e-9, atol=0):
-                raise ScanFormatError(path, f"{key} in the header equal to the sidecar {sidecar.name}",
-                                      column=key, got=f"{val} vs {sval}")
+                raise ScanFormatError(
+                    path, f"{key} in the header equal to the sidecar {sidecar.name}", column=key, got=f"{val} vs {sval}"
+                )
             val = sval
         if val is None:
-            raise ScanFormatError(path, f"{key} in a '# dx_mm=.. dy_mm=..' header line or in {sidecar.name}",
-                                  column=key, got="missing")
+            raise ScanFormatError(
+                path, f"{key} in a '# dx_mm=.. dy_mm=..' header line or in {sidecar.name}", column=key, got="missing"
+            )
         if not (np.isfinite(val) and val > 0):
             raise ScanFormatError(path, "a positive spacing in mm", column=key, got=val)
         out.append(val)
@@ -122,8 +128,9 @@ def _read_matrix(path: Path, text: str) -> Surface:
     if bad.size:
         i = int(bad[0])
         nf = counts + (1 if delim == "," else 0)
-        raise ScanFormatError(path, f"{nf[0]} values per row as in row {n_head + 1}", row=n_head + i + 1,
-                              got=f"{nf[i]} values")
+        raise ScanFormatError(
+            path, f"{nf[0]} values per row as in row {n_head + 1}", row=n_head + i + 1, got=f"{nf[i]} values"
+        )
     buf = io.StringIO("\n".join(body))
     if delim == ",":
         df = pd.read_csv(buf, header=None, na_values=_NA, keep_default_na=False, skip_blank_lines=False)
@@ -140,8 +147,9 @@ def _grid_index(path, coord: np.ndarray, axis: str) -> tuple[np.ndarray, float, 
     """Integer grid index of each coordinate, spacing (mm) and origin (mm); error if irregular."""
     c0, c1 = float(coord.min()), float(coord.max())
     if c1 == c0:
-        raise ScanFormatError(path, f"at least 2 distinct {axis} coordinates (a 2-D grid)", column=axis,
-                              got=f"all {axis} = {c0}")
+        raise ScanFormatError(
+            path, f"at least 2 distinct {axis} coordinates (a 2-D grid)", column=axis, got=f"all {axis} = {c0}"
+        )
     u = np.unique(coord)
     gaps = np.diff(u)
     gaps = gaps[gaps > 1e-9 * max(abs(c0), abs(c1), c1 - c0)]
@@ -156,17 +164,26 @@ def _grid_index(path, coord: np.ndarray, axis: str) -> tuple[np.ndarray, float, 
 
 
 def _fit_axis(path, coord, axis, step, c0):
-    for refine in (False, True):
-        if refine:  # least-squares step through the origin c0, once the indices are known
-            step = float(np.dot(idx, coord - c0) / np.dot(idx, idx))
-        idx = np.rint((coord - c0) / step)
-        resid = np.abs(coord - c0 - idx * step)
-        worst = int(np.argmax(resid))
-        if resid[worst] > 0.01 * step:
-            raise ScanFormatError(path, f"{axis} coordinates on a regular grid of step {step:g} mm (within 1 %)",
-                                  column=axis, got=float(coord[worst]), hint=f"data point {worst + 1} is off "
-                                  "the grid")
+    idx = _grid_indices(path, coord, axis, step, c0)
+    step = float(np.dot(idx, coord - c0) / np.dot(idx, idx))  # least-squares step through the origin c0
+    idx = _grid_indices(path, coord, axis, step, c0)
     return idx.astype(np.int64), step, c0
+
+
+def _grid_indices(path, coord, axis, step, c0) -> np.ndarray:
+    """Grid index (float) of each coordinate for grid ``c0 + i * step``; error if one is off by > 1 % of a step."""
+    idx = np.rint((coord - c0) / step)
+    resid = np.abs(coord - c0 - idx * step)
+    worst = int(np.argmax(resid))
+    if resid[worst] > 0.01 * step:
+        raise ScanFormatError(
+            path,
+            f"{axis} coordinates on a regular grid of step {step:g} mm (within 1 %)",
+            column=axis,
+            got=float(coord[worst]),
+            hint=f"data point {worst + 1} is off the grid",
+        )
+    return idx
 
 
 def _read_xyz(path: Path, text: str) -> Surface:
@@ -176,7 +193,7 @@ def _read_xyz(path: Path, text: str) -> Surface:
     body_start = 0
     while body_start < len(lines) and (lines[body_start].startswith("#") or not lines[body_start].strip()):
         body_start += 1
-    body = [ln for ln in lines[body_start:]]
+    body = list(lines[body_start:])
     while body and not body[-1].strip():
         body.pop()
     if not body:
@@ -196,8 +213,9 @@ def _read_xyz(path: Path, text: str) -> Surface:
     for name, c in (("x", x), ("y", y)):
         if not np.all(np.isfinite(c)):
             i = int(np.flatnonzero(~np.isfinite(c))[0])
-            raise ScanFormatError(path, f"a finite {name} coordinate (mm)", column=name, got=c[i],
-                                  hint=f"data point {i + 1}")
+            raise ScanFormatError(
+                path, f"a finite {name} coordinate (mm)", column=name, got=c[i], hint=f"data point {i + 1}"
+            )
     j, dx, x0 = _grid_index(path, x, "x")
     i, dy, y0 = _grid_index(path, y, "y")
     rows, cols = int(i.max()) + 1, int(j.max()) + 1
@@ -205,8 +223,9 @@ def _read_xyz(path: Path, text: str) -> Surface:
     counts = np.bincount(flat, minlength=rows * cols)
     if counts.max() > 1:
         k = int(np.flatnonzero(counts[flat] > 1)[0])
-        raise ScanFormatError(path, "at most one point per grid position", got=f"duplicate x={x[k]} y={y[k]}",
-                              hint=f"data point {k + 1}")
+        raise ScanFormatError(
+            path, "at most one point per grid position", got=f"duplicate x={x[k]} y={y[k]}", hint=f"data point {k + 1}"
+        )
     h = np.full(rows * cols, np.nan)
     h[flat] = z
     return Surface(h.reshape(rows, cols), dx=dx, dy=dy, name=path.stem, meta={"x0_mm": x0, "y0_mm": y0})
@@ -253,8 +272,9 @@ def write_grid_text(path, surface: Surface) -> None:
         y0 = float(surface.meta.get("y0_mm", 0.0))
         yy, xx = np.meshgrid(y0 + surface.y_mm(), x0 + surface.x_mm(), indexing="ij")
         df = pd.DataFrame({"x": xx.ravel(), "y": yy.ravel(), "z": h.ravel()})
-        payload = ("# x y z in mm\n" + df.to_csv(sep=" ", header=False, index=False, na_rep="nan",
-                                                  lineterminator="\n")).encode("utf-8")
+        payload = (
+            "# x y z in mm\n" + df.to_csv(sep=" ", header=False, index=False, na_rep="nan", lineterminator="\n")
+        ).encode("utf-8")
     else:
         raise ValueError(f"{path}: grid text suffix must be .csv, .txt or .xyz, got {suffix!r}")
-    atomic_write_bytes(path, lambda fh: fh.write(payload))
+    write_bytes(path, payload)

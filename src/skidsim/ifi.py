@@ -77,10 +77,13 @@ def ifi_table(mpd_mm: dict, dft20: dict) -> pd.DataFrame:
     """One row per site (sorted): site, mpd_mm, dft20, sp_kmh (km/h), fr60, f60. ``mpd_mm`` and ``dft20``: dicts
     site -> value with the same sites; a site whose MPD is not available (NaN) gets NaN IFI values."""
     if set(mpd_mm) != set(dft20):
-        raise InputError(None, "an MPD and a DFT20 for the same sites", column="site",
-                         got=sorted(set(mpd_mm) ^ set(dft20)))
-    rows = [{"site": s, "mpd_mm": float(mpd_mm[s]), "dft20": float(dft20[s]), **ifi(mpd_mm[s], dft20[s])}
-            for s in sorted(mpd_mm)]
+        raise InputError(
+            None, "an MPD and a DFT20 for the same sites", column="site", got=sorted(set(mpd_mm) ^ set(dft20))
+        )
+    rows = [
+        {"site": s, "mpd_mm": float(mpd_mm[s]), "dft20": float(dft20[s]), **ifi(mpd_mm[s], dft20[s])}
+        for s in sorted(mpd_mm)
+    ]
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
@@ -95,8 +98,16 @@ def model_validation_rows(table: pd.DataFrame, vtable: pd.DataFrame) -> pd.DataF
     pts = vtable.drop_duplicates(["site", "speed_kmh"])[["site", "speed_kmh", "kind", "mu_measured"]]
     pts = pts.merge(table[["site", "dft20", "sp_kmh"]], on="site", how="left")
     sim = piarc_mu(pts["speed_kmh"], pts["dft20"], pts["sp_kmh"])
-    out = pd.DataFrame({"site": pts["site"], "method": MODEL, "speed_kmh": pts["speed_kmh"].astype(float),
-                        "kind": pts["kind"], "sn_sim": sim, "mu_measured": pts["mu_measured"].astype(float)})
+    out = pd.DataFrame(
+        {
+            "site": pts["site"],
+            "method": MODEL,
+            "speed_kmh": pts["speed_kmh"].astype(float),
+            "kind": pts["kind"],
+            "sn_sim": sim,
+            "mu_measured": pts["mu_measured"].astype(float),
+        }
+    )
     out["err"] = out["sn_sim"] - out["mu_measured"]
     out["rel_err"] = out["sn_sim"] / out["mu_measured"] - 1.0
     return out.reset_index(drop=True)
@@ -133,6 +144,8 @@ def wins(stats: pd.DataFrame) -> list[str]:
         beaten = [m for m in models if r[f"{MODEL}_rmse"] < r[f"{m}_rmse"]]
         if beaten:
             where = "over all validation speeds" if r["speed_kmh"] == "all" else f"at {r['speed_kmh']} km/h"
-            out.append(f"PIARC/IFI model beats {', '.join(beaten)} {where}: RMSE {r[f'{MODEL}_rmse']:.4f} vs "
-                       + ", ".join(f"{r[f'{m}_rmse']:.4f}" for m in beaten))
+            out.append(
+                f"PIARC/IFI model beats {', '.join(beaten)} {where}: RMSE {r[f'{MODEL}_rmse']:.4f} vs "
+                + ", ".join(f"{r[f'{m}_rmse']:.4f}" for m in beaten)
+            )
     return out

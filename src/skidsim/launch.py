@@ -45,7 +45,8 @@ def live_snakemake_in(workdir: Path, exclude: tuple[int, ...] = ()) -> list[int]
         try:
             cmd = (p / "cmdline").read_bytes().split(b"\0")
             is_snakemake = (cmd and os.path.basename(cmd[0]) == b"snakemake") or (
-                len(cmd) > 2 and (os.path.basename(cmd[1]) == b"snakemake" or cmd[1:3] == [b"-m", b"snakemake"]))
+                len(cmd) > 2 and (os.path.basename(cmd[1]) == b"snakemake" or cmd[1:3] == [b"-m", b"snakemake"])
+            )
             if not is_snakemake:  # Snakemake itself, not one of its jobs (their scripts live in .snakemake/)
                 continue
             if os.path.realpath(p / "cwd") == target:
@@ -69,8 +70,11 @@ def main(argv: list[str] | None = None, snakemake: list[str] | None = None) -> i
     cmd = list(snakemake or [sys.executable, "-m", "snakemake"])
     workdir = _workdir(args)
     if stale_lock(workdir):
-        print(f"skidsim: removing the lock a stopped run left in {workdir / '.snakemake' / 'locks'}",
-              file=sys.stderr, flush=True)
+        print(
+            f"skidsim: removing the lock a stopped run left in {workdir / '.snakemake' / 'locks'}",
+            file=sys.stderr,
+            flush=True,
+        )
         subprocess.run(cmd + ["--unlock"] + args, check=False, stdout=subprocess.DEVNULL)
     received: list[int] = []
     children: list[subprocess.Popen] = []

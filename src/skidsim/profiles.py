@@ -42,12 +42,16 @@ class ProfileFormatError(InputError):
     ``<file>: line <n>, column '<name>': expected ..., got ...`` (line numbers from 1)."""
 
 
-def _error(path, expected: str, *, line: int | None = None, column: str | None = None,
-           got: object = None) -> ProfileFormatError:
+def _error(
+    path, expected: str, *, line: int | None = None, column: str | None = None, got: object = None
+) -> ProfileFormatError:
     where = [f"line {line}"] if line is not None else []
     where += [f"column '{column}'"] if column is not None else []
-    return ProfileFormatError(f"{path}: {', '.join(where)}" if where else path, expected,
-                              got=got.item() if isinstance(got, np.generic) else got)
+    return ProfileFormatError(
+        f"{path}: {', '.join(where)}" if where else path,
+        expected,
+        got=got.item() if isinstance(got, np.generic) else got,
+    )
 
 
 @dataclass(frozen=True)
@@ -93,7 +97,7 @@ def _block_core(lines: list[str], delim: str | None) -> tuple[int, int] | None:
         f = _split(lines[i], delim)
         if not _numeric(f, delim):
             continue
-        run = [_split(lines[j], delim) for j in idx[pos + 1:pos + 5]]
+        run = [_split(lines[j], delim) for j in idx[pos + 1 : pos + 5]]
         if all(len(r) == len(f) and any(_number(c, delim) is not None for c in r) for r in run):
             return i, len(f)
     return None
@@ -126,8 +130,9 @@ def _clean(name: str) -> str:
     return _UNIT.sub("", name).strip().strip(":").strip().lower()
 
 
-def _pick(spec: str | int | None, names: list[str] | None, n_fields: int, defaults: tuple[str, ...],
-          role: str, path: str) -> int:
+def _pick(
+    spec: str | int | None, names: list[str] | None, n_fields: int, defaults: tuple[str, ...], role: str, path: str
+) -> int:
     if spec is not None and (isinstance(spec, int) or str(spec).lstrip("-").isdigit()):
         i = int(spec)
         if not 0 <= i < n_fields:
@@ -135,8 +140,12 @@ def _pick(spec: str | int | None, names: list[str] | None, n_fields: int, defaul
         return i
     if spec is not None:
         if not names:
-            raise _error(path, f"a header line naming the columns (to find {role} column {spec!r}); "
-                                     "or give the column's 0-based index", got="no column names")
+            raise _error(
+                path,
+                f"a header line naming the columns (to find {role} column {spec!r}); "
+                "or give the column's 0-based index",
+                got="no column names",
+            )
         want = str(spec).strip().lower()
         for i, n in enumerate(names):
             if n.lower() == want or _clean(n) == want:
@@ -149,16 +158,18 @@ def _pick(spec: str | int | None, names: list[str] | None, n_fields: int, defaul
         clean = [_clean(n) for n in names]
         for d in defaults:
             for i, n in enumerate(clean):
-                if n == d or n.startswith(d + " ") or n.startswith(d + "_"):
+                if n == d or n.startswith((d + " ", d + "_")):
                     return i
     if n_fields == 2:
         return 0 if role == "distance" else 1
-    raise _error(path, f"the {role} column by name or 0-based index (--{role}-col)",
-                             got=names or f"{n_fields} unnamed columns")
+    raise _error(
+        path, f"the {role} column by name or 0-based index (--{role}-col)", got=names or f"{n_fields} unnamed columns"
+    )
 
 
-def read_profile(path: str | Path, *, distance_col: str | int | None = None,
-                 height_col: str | int | None = None) -> Profile:
+def read_profile(
+    path: str | Path, *, distance_col: str | int | None = None, height_col: str | int | None = None
+) -> Profile:
     """Read a text profile (module docstring). Raises :class:`ProfileFormatError` on a file without a numeric
     block, an unknown column, a non-numeric distance or distances that do not increase."""
     path = Path(path)
@@ -170,8 +181,11 @@ def read_profile(path: str | Path, *, distance_col: str | int | None = None,
         if hit is not None and (found is None or hit[0] < found[1][0]):
             found = (delim, hit)
     if found is None:
-        raise _error(path, "a numeric block: lines of >= 2 delimited fields (tab, ';', ',' or spaces), "
-                                 "at least two of them numbers", got=f"{len(lines)} lines without one")
+        raise _error(
+            path,
+            "a numeric block: lines of >= 2 delimited fields (tab, ';', ',' or spaces), at least two of them numbers",
+            got=f"{len(lines)} lines without one",
+        )
     delim, (core, n_fields) = found
     names = _names(lines, core, delim, n_fields)
     di = _pick(distance_col, names, n_fields, _DISTANCE_NAMES, "distance", str(path))
@@ -190,8 +204,13 @@ def read_profile(path: str | Path, *, distance_col: str | int | None = None,
         f = _split(lines[i], delim)
         d = _number(f[di], delim) if di < len(f) else None
         if d is None:
-            raise _error(path, "a number (distance in mm)", line=i + 1, column=dname,
-                                     got=f[di] if di < len(f) else "(missing cell)")
+            raise _error(
+                path,
+                "a number (distance in mm)",
+                line=i + 1,
+                column=dname,
+                got=f[di] if di < len(f) else "(missing cell)",
+            )
         h = _number(f[hi], delim) if hi < len(f) else None
         dist.append(d)
         height.append(np.nan if h is None else h)
@@ -200,7 +219,9 @@ def read_profile(path: str | Path, *, distance_col: str | int | None = None,
     if bad.size:
         k = bad[0] + 1
         line_no = [i for i in range(start, len(lines)) if lines[i].strip()][k] + 1
-        raise _error(path, f"distances increasing strictly (previous {x[k - 1]:g} mm)", line=line_no,
-                                 column=dname, got=x[k])
-    return Profile(distance_mm=x, height_mm=np.asarray(height), path=str(path), columns=(dname, hname),
-                   header=tuple(lines[:start]))
+        raise _error(
+            path, f"distances increasing strictly (previous {x[k - 1]:g} mm)", line=line_no, column=dname, got=x[k]
+        )
+    return Profile(
+        distance_mm=x, height_mm=np.asarray(height), path=str(path), columns=(dname, hname), header=tuple(lines[:start])
+    )

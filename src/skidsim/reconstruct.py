@@ -34,27 +34,22 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
-from .errors import InputError
-from .runlog import honour_umask
+from .atomic import atomic_path
+from .errors import ConfigError, InputError
 from .surface import Surface
 
 #: ISO 16610-61 Gaussian constant alpha = sqrt(ln 2 / pi): 50 % transmission at the cutoff wavelength.
 ISO_GAUSS_ALPHA = math.sqrt(math.log(2.0) / math.pi)
 
 # Hermite-to-monomial matrix: p(t) = [1 t t^2 t^3] . M . [p0, p1, p0', p1'].
-_HERMITE = np.array([[1.0, 0.0, 0.0, 0.0],
-                     [0.0, 0.0, 1.0, 0.0],
-                     [-3.0, 3.0, -2.0, -1.0],
-                     [2.0, -2.0, 1.0, 1.0]])
+_HERMITE = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [-3.0, 3.0, -2.0, -1.0], [2.0, -2.0, 1.0, 1.0]])
 
 
 def gaussian_sigma_mm(cutoff_mm: float) -> float:
@@ -101,8 +96,12 @@ class Heightfield:
         if z.ndim != 2 or z.shape[0] < 2 or z.shape[1] < 2:
             raise InputError(where, "a 2-D height array with at least 2 x 2 nodes", column="z_m", got=z.shape)
         if not np.all(np.isfinite(z)):
-            raise InputError(where, "finite heights (no NaN: gap-fill the scan first)", column="z_m",
-                             got=f"{int(np.sum(~np.isfinite(z)))} non-finite values")
+            raise InputError(
+                where,
+                "finite heights (no NaN: gap-fill the scan first)",
+                column="z_m",
+                got=f"{int(np.sum(~np.isfinite(z)))} non-finite values",
+            )
         for nm in ("dx_m", "dy_m"):
             v = getattr(self, nm)
             if not (np.isfinite(v) and v > 0):
@@ -180,10 +179,14 @@ class Heightfield:
         t = s - j
         u = r - i
         z = self.z_m
-        return ((1 - t) * (1 - u) * z[i, j] + t * (1 - u) * z[i, j + 1]
-                + (1 - t) * u * z[i + 1, j] + t * u * z[i + 1, j + 1])
+        return (
+            (1 - t) * (1 - u) * z[i, j]
+            + t * (1 - u) * z[i, j + 1]
+            + (1 - t) * u * z[i + 1, j]
+            + t * u * z[i + 1, j + 1]
+        )
 
-    def crop(self, x_range_m: tuple[float, float], y_range_m: tuple[float, float]) -> "Heightfield":
+    def crop(self, x_range_m: tuple[float, float], y_range_m: tuple[float, float]) -> Heightfield:
         """The sub-grid of nodes inside ``x_range_m x y_range_m`` (m, inclusive), same bottom and meta."""
         x = self.x_m()
         y = self.y_m()
@@ -191,10 +194,21 @@ class Heightfield:
         jj = np.nonzero((x >= x_range_m[0] - eps) & (x <= x_range_m[1] + eps))[0]
         ii = np.nonzero((y >= y_range_m[0] - eps) & (y <= y_range_m[1] + eps))[0]
         if len(jj) < 2 or len(ii) < 2:
-            raise InputError(self.name or "<heightfield>", "a crop window holding at least 2 x 2 nodes",
-                             column="x_range_m/y_range_m", got=(x_range_m, y_range_m))
-        return Heightfield(self.z_m[ii[0]:ii[-1] + 1, jj[0]:jj[-1] + 1].copy(), self.dx_m, self.dy_m,
-                           (float(x[jj[0]]), float(y[ii[0]])), self.z_bottom_m, self.name, dict(self.meta))
+            raise InputError(
+                self.name or "<heightfield>",
+                "a crop window holding at least 2 x 2 nodes",
+                column="x_range_m/y_range_m",
+                got=(x_range_m, y_range_m),
+            )
+        return Heightfield(
+            self.z_m[ii[0] : ii[-1] + 1, jj[0] : jj[-1] + 1].copy(),
+            self.dx_m,
+            self.dy_m,
+            (float(x[jj[0]]), float(y[ii[0]])),
+            self.z_bottom_m,
+            self.name,
+            dict(self.meta),
+        )
 
     # ------------------------------------------------------------------ C1 interpolation
     @cached_property
@@ -220,7 +234,7 @@ class Heightfield:
         for a, (dj, src_t) in enumerate([(0, 0), (1, 0), (0, 1), (1, 1)]):
             for b, (di, src_u) in enumerate([(0, 0), (1, 0), (0, 1), (1, 1)]):
                 src = (z, fu, ft, ftu)[src_t * 2 + src_u]
-                F[:, :, a, b] = src[di:di + ny - 1, dj:dj + nx - 1]
+                F[:, :, a, b] = src[di : di + ny - 1, dj : dj + nx - 1]
         # C = M F M^T per cell (C[p, q]: coefficient of t^p u^q) as one GEMM with kron(M, M); stored
         # transposed, [u power, t power].
         C = (F.reshape(-1, 16) @ np.kron(_HERMITE, _HERMITE).T).reshape(ny - 1, nx - 1, 4, 4)
@@ -312,23 +326,22 @@ class Heightfield:
     def to_npz(self, path: str | Path) -> Path:
         """Write to ``path`` (.npz, uncompressed) atomically; returns the path."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez(fh, z_m=self.z_m, dx_m=self.dx_m, dy_m=self.dy_m, origin_m=np.array(self.origin_m),
-                         z_bottom_m=self.z_bottom_m, name=np.array(self.name),
-                         meta_json=np.array(json.dumps(self.meta, sort_keys=True, default=_json_default)),
-                         format=np.array("skidsim.heightfield/1"))
-            honour_umask(tmp)  # mkstemp made it 0600
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            np.savez(
+                fh,
+                z_m=self.z_m,
+                dx_m=self.dx_m,
+                dy_m=self.dy_m,
+                origin_m=np.array(self.origin_m),
+                z_bottom_m=self.z_bottom_m,
+                name=np.array(self.name),
+                meta_json=np.array(json.dumps(self.meta, sort_keys=True, default=_json_default)),
+                format=np.array("skidsim.heightfield/1"),
+            )
         return path
 
     @classmethod
-    def from_npz(cls, path: str | Path) -> "Heightfield":
+    def from_npz(cls, path: str | Path) -> Heightfield:
         """Read a file written by :meth:`to_npz`; bad content raises :class:`InputError` naming the field."""
         path = Path(path)
         try:
@@ -348,8 +361,15 @@ class Heightfield:
             z = np.asarray(data["z_m"])
             if z.ndim != 2:
                 raise InputError(path, "a 2-D array z_m", column="z_m", got=z.shape)
-            return cls(z, float(data["dx_m"]), float(data["dy_m"]), (float(origin[0]), float(origin[1])),
-                       float(data["z_bottom_m"]), name, meta)
+            return cls(
+                z,
+                float(data["dx_m"]),
+                float(data["dy_m"]),
+                (float(origin[0]), float(origin[1])),
+                float(data["z_bottom_m"]),
+                name,
+                meta,
+            )
 
 
 def _json_default(o):
@@ -409,21 +429,95 @@ def remove_mean_plane(z: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.n
 STUDY_STRIP_LENGTH_MM = 114.3
 
 
+@dataclass(frozen=True)
+class MeshOptions:
+    """The FE pavement strip and its exports (config keys under ``mesh:``).
+
+    length_mm, width_mm: strip size in mm along x (the sliding direction) and y (the study's 114.3 x 40;
+    ``length_mm="auto"``: see :func:`strip_length_mm`); x0_mm, y0_mm: strip origin on the scan in mm (None:
+    centred); resolution_mm: node spacing of the rigid pavement in mm (area-averaged); smoothing: Gaussian cutoff
+    in mm applied before resampling, ``"nyquist"`` (2 x resolution_mm) or None; base_depth_mm: solid below the
+    lowest point in mm; gmsh_layers: hexahedral layers through the pavement of the gmsh .msh; inp_speed_kmh:
+    sliding speed in km/h written into the dynamic CalculiX/ABAQUS decks.
+    """
+
+    length_mm: float | str = STUDY_STRIP_LENGTH_MM
+    width_mm: float = 40.0
+    x0_mm: float | None = None
+    y0_mm: float | None = None
+    resolution_mm: float = 0.5
+    smoothing: float | str | None = "nyquist"
+    base_depth_mm: float = 8.0
+    gmsh_layers: int = 4
+    inp_speed_kmh: float = 20.0
+
+    def __post_init__(self) -> None:
+        def bad(key, expected):
+            raise ConfigError(f"mesh.{key}: expected {expected}, got {getattr(self, key)!r}")
+
+        def positive(v):
+            return isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0
+
+        if not (self.length_mm == "auto" or positive(self.length_mm)):
+            bad("length_mm", "a length > 0 mm or 'auto'")
+        for key in ("width_mm", "resolution_mm", "base_depth_mm", "inp_speed_kmh"):
+            if not positive(getattr(self, key)):
+                bad(key, "a number > 0")
+        for key in ("x0_mm", "y0_mm"):
+            v = getattr(self, key)
+            if v is not None and not (isinstance(v, (int, float)) and v >= 0):
+                bad(key, "null (centred) or a coordinate >= 0 mm")
+        if not (self.smoothing in ("nyquist", None) or positive(self.smoothing)):
+            bad("smoothing", "'nyquist', null or a cutoff > 0 mm")
+        if not (isinstance(self.gmsh_layers, int) and self.gmsh_layers >= 1):
+            bad("gmsh_layers", "an integer >= 1")
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> MeshOptions:
+        """From the ``mesh:`` config block; an unknown key raises :class:`ConfigError`."""
+        d = dict(d or {})
+        names = sorted(f.name for f in fields(cls))
+        unknown = sorted(set(d) - set(names))
+        if unknown:
+            raise ConfigError(f"mesh: unknown key(s) {unknown}; expected a subset of {names}")
+        return cls(**d)
+
+    def strip_kwargs(self) -> dict:
+        """Keyword arguments of :func:`pavement_strip` (the strip geometry, resolution and smoothing)."""
+        return dict(
+            length_mm=self.length_mm,
+            width_mm=self.width_mm,
+            x0_mm=self.x0_mm,
+            y0_mm=self.y0_mm,
+            resolution_mm=self.resolution_mm,
+            smoothing=self.smoothing,
+            base_depth_mm=self.base_depth_mm,
+        )
+
+
 def strip_length_mm(surface: Surface, length_mm: float | str, x0_mm: float | None = None) -> float:
     """The strip length in mm: ``length_mm`` itself, or for ``"auto"`` the scan's length along x from ``x0_mm``
     (the whole scan when None) up to the study's 114.3 mm."""
     if isinstance(length_mm, str):
         if length_mm != "auto":
-            raise InputError(surface.name or "<surface>", "a strip length in mm or 'auto'", column="length_mm",
-                             got=length_mm)
+            raise InputError(
+                surface.name or "<surface>", "a strip length in mm or 'auto'", column="length_mm", got=length_mm
+            )
         return min(STUDY_STRIP_LENGTH_MM, surface.width_mm - (x0_mm or 0.0))
     return float(length_mm)
 
 
-def pavement_strip(surface: Surface, length_mm: float | str = 114.3, width_mm: float = 40.0,
-                   x0_mm: float | None = None, y0_mm: float | None = None, resolution_mm: float = 0.5,
-                   smoothing: float | str | None = "nyquist", base_depth_mm: float = 8.0,
-                   level: bool = True) -> Heightfield:
+def pavement_strip(
+    surface: Surface,
+    length_mm: float | str = MeshOptions.length_mm,
+    width_mm: float = MeshOptions.width_mm,
+    x0_mm: float | None = MeshOptions.x0_mm,
+    y0_mm: float | None = MeshOptions.y0_mm,
+    resolution_mm: float = MeshOptions.resolution_mm,
+    smoothing: float | str | None = MeshOptions.smoothing,
+    base_depth_mm: float = MeshOptions.base_depth_mm,
+    level: bool = True,
+) -> Heightfield:
     """Cut, smooth, resample and level a strip of ``surface`` into the FE :class:`Heightfield` (SI).
 
     Parameters
@@ -449,8 +543,12 @@ def pavement_strip(surface: Surface, length_mm: float | str = 114.3, width_mm: f
     """
     where = surface.name or "<surface>"
     length_mm = strip_length_mm(surface, length_mm, x0_mm)
-    for nm, v in (("length_mm", length_mm), ("width_mm", width_mm), ("resolution_mm", resolution_mm),
-                  ("base_depth_mm", base_depth_mm)):
+    for nm, v in (
+        ("length_mm", length_mm),
+        ("width_mm", width_mm),
+        ("resolution_mm", resolution_mm),
+        ("base_depth_mm", base_depth_mm),
+    ):
         if not (np.isfinite(v) and v > 0):
             raise InputError(where, "a positive length in mm", column=nm, got=v)
     nx_cells = max(1, int(round(length_mm / resolution_mm)))
@@ -464,17 +562,26 @@ def pavement_strip(surface: Surface, length_mm: float | str = 114.3, width_mm: f
         y0_mm = 0.5 * (H - width_mm)
     tol = 1e-9 * max(W, H, 1.0)
     if x0_mm < -tol or x0_mm + length_mm > W + tol:
-        hint = (f"the scan is {length_mm - W:.4g} mm shorter than the {length_mm:g} mm strip: give a longer scan, "
-                "or length_mm='auto' for a strip of the scan's length" if length_mm > W + tol else None)
-        raise InputError(where, f"a strip x range inside the scan's [0, {W:.4g}] mm", column="x0_mm",
-                         got=(round(x0_mm, 6), round(x0_mm + length_mm, 6)), hint=hint)
+        hint = (
+            f"the scan is {length_mm - W:.4g} mm shorter than the {length_mm:g} mm strip: give a longer scan, "
+            "or length_mm='auto' for a strip of the scan's length"
+            if length_mm > W + tol
+            else None
+        )
+        raise InputError(
+            where,
+            f"a strip x range inside the scan's [0, {W:.4g}] mm",
+            column="x0_mm",
+            got=(round(x0_mm, 6), round(x0_mm + length_mm, 6)),
+            hint=hint,
+        )
     if y0_mm < -tol or y0_mm + width_mm > H + tol:
-        raise InputError(where, f"a strip y range inside the scan's [0, {H:.4g}] mm", column="y0_mm",
-                         got=(y0_mm, y0_mm + width_mm))
+        raise InputError(
+            where, f"a strip y range inside the scan's [0, {H:.4g}] mm", column="y0_mm", got=(y0_mm, y0_mm + width_mm)
+        )
     if isinstance(smoothing, str):
         if smoothing != "nyquist":
-            raise InputError(where, "smoothing 'nyquist', a cutoff in mm, or None", column="smoothing",
-                             got=smoothing)
+            raise InputError(where, "smoothing 'nyquist', a cutoff in mm, or None", column="smoothing", got=smoothing)
         cutoff_mm = 2.0 * resolution_mm
     else:
         cutoff_mm = float(smoothing) if smoothing else 0.0
@@ -494,8 +601,12 @@ def pavement_strip(surface: Surface, length_mm: float | str = 114.3, width_mm: f
     bad = ~np.isfinite(win)
     if bad.any():
         r, c = np.argwhere(bad)[0]
-        raise InputError(where, "finite heights in the strip (gap-fill the scan first)", column="heights",
-                         got=f"{int(bad.sum())} NaN, first at row {i0 + r}, col {j0 + c}")
+        raise InputError(
+            where,
+            "finite heights in the strip (gap-fill the scan first)",
+            column="heights",
+            got=f"{int(bad.sum())} NaN, first at row {i0 + r}, col {j0 + c}",
+        )
     if sig > 0:
         win = ndimage.gaussian_filter(win, sigma=(sig / dy, sig / dx), mode="reflect", truncate=4.0)
     z_mm = resample_area(win, dx, dy, xn - j0 * dx, yn - i0 * dy, hx, hy)
@@ -506,13 +617,22 @@ def pavement_strip(surface: Surface, length_mm: float | str = 114.3, width_mm: f
         z_mm, plane = remove_mean_plane(z_mm, xl, yl)
     z_m = z_mm * 1e-3
     meta = {
-        "source": surface.name, "x0_mm": float(x0_mm), "y0_mm": float(y0_mm), "length_mm": float(length_mm),
-        "width_mm": float(width_mm), "resolution_mm": float(resolution_mm), "dx_mm": hx, "dy_mm": hy,
-        "smoothing_cutoff_mm": cutoff_mm, "smoothing_sigma_mm": sig, "smoothing_kernel": "ISO 16610-61 Gaussian",
-        "resampling": "area average", "levelled": bool(level),
-        "removed_plane_mm": {"a_mm": float(plane[0]), "b_mm_per_mm": float(plane[1]),
-                             "c_mm_per_mm": float(plane[2])},
+        "source": surface.name,
+        "x0_mm": float(x0_mm),
+        "y0_mm": float(y0_mm),
+        "length_mm": float(length_mm),
+        "width_mm": float(width_mm),
+        "resolution_mm": float(resolution_mm),
+        "dx_mm": hx,
+        "dy_mm": hy,
+        "smoothing_cutoff_mm": cutoff_mm,
+        "smoothing_sigma_mm": sig,
+        "smoothing_kernel": "ISO 16610-61 Gaussian",
+        "resampling": "area average",
+        "levelled": bool(level),
+        "removed_plane_mm": {"a_mm": float(plane[0]), "b_mm_per_mm": float(plane[1]), "c_mm_per_mm": float(plane[2])},
         "base_depth_mm": float(base_depth_mm),
     }
-    return Heightfield(z_m, hx * 1e-3, hy * 1e-3, (0.0, 0.0), float(z_m.min()) - base_depth_mm * 1e-3,
-                       surface.name, meta)
+    return Heightfield(
+        z_m, hx * 1e-3, hy * 1e-3, (0.0, 0.0), float(z_m.min()) - base_depth_mm * 1e-3, surface.name, meta
+    )

@@ -1,4 +1,6 @@
-"""Logging and atomic-output helpers shared by the workflow scripts and the CLI (no Snakemake import)."""
+"""Logging and table/JSON writers shared by the workflow scripts and the CLI (no Snakemake import).
+
+The writers go through :mod:`skidsim.atomic`, the one atomic-write helper of the project."""
 
 from __future__ import annotations
 
@@ -7,10 +9,11 @@ import logging
 import os
 import sys
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+
+from . import atomic
 
 LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 
@@ -79,8 +82,13 @@ def _report_failure(logger: logging.Logger, exc_type, exc, tb) -> None:
         logger.error("%s interrupted", ERROR_MARK, extra=quiet)
     elif issubclass(exc_type, SkidsimError):
         text = str(exc)
-        logger.error("%s %s", ERROR_MARK, text.replace("\n", "\n" + " " * (len(ERROR_MARK) + 1)),
-                     exc_info=(exc_type, exc, tb) if debug_requested() else None, extra=quiet)
+        logger.error(
+            "%s %s",
+            ERROR_MARK,
+            text.replace("\n", "\n" + " " * (len(ERROR_MARK) + 1)),
+            exc_info=(exc_type, exc, tb) if debug_requested() else None,
+            extra=quiet,
+        )
     else:
         logger.error("failed: %s: %s", exc_type.__name__, exc, exc_info=(exc_type, exc, tb))
 
@@ -104,34 +112,16 @@ def collect_failures(log_dir: str | Path = "logs", since: float = 0.0) -> list[t
             k = line.find(ERROR_MARK)
             if k < 0:
                 continue
-            msg = [line[k + len(ERROR_MARK):].strip()]
+            msg = [line[k + len(ERROR_MARK) :].strip()]
             indent = " " * (len(ERROR_MARK) + 1)
-            msg += [ln[len(indent):] for ln in lines[i + 1:] if ln.startswith(indent)]
+            msg += [ln[len(indent) :] for ln in lines[i + 1 :] if ln.startswith(indent)]
             out.append((str(p), "\n".join(msg)))
             break
     return out
 
 
-@contextmanager
-def atomic_path(path: str | Path, suffix: str | None = None):
-    """Yield a temporary sibling path; rename it to ``path`` only if the block succeeds.
-
-    The temporary name keeps the final suffix (some writers infer the format from it).
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    sfx = suffix if suffix is not None else path.suffix
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{sfx}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
 class _Encoder(json.JSONEncoder):
-    def default(self, o):  # noqa: D401 - json hook
+    def default(self, o):
         if isinstance(o, (np.integer,)):
             return int(o)
         if isinstance(o, (np.floating,)):
@@ -147,8 +137,7 @@ class _Encoder(json.JSONEncoder):
 
 def write_json(path: str | Path, obj) -> None:
     """Write JSON atomically (NumPy scalars and arrays converted; NaN written as null)."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(_sanitize(obj), cls=_Encoder, indent=2, sort_keys=False) + "\n")
+    atomic.write_text(path, json.dumps(_sanitize(obj), cls=_Encoder, indent=2, sort_keys=False) + "\n")
 
 
 def _sanitize(obj):
@@ -162,14 +151,13 @@ def _sanitize(obj):
 
 
 def write_parquet(path: str | Path, df) -> None:
-    """Write a DataFrame to parquet atomically."""
-    with atomic_path(path) as tmp:
-        df.to_parquet(tmp, index=False)
+    """Write a DataFrame to parquet atomically (no index)."""
+    atomic.write_parquet(path, df, index=False)
 
 
 def write_csv(path: str | Path, df, **kw) -> None:
     """Write a DataFrame to CSV atomically."""
-    with atomic_path(path) as tmp:
+    with atomic.atomic_path(path) as tmp:
         df.to_csv(tmp, index=kw.pop("index", False), **kw)
 
 
@@ -192,8 +180,9 @@ class Progress:
         el = now - self.t0
         frac = min(max(done / self.total, 1e-9), 1.0)
         left = el * (1 - frac) / frac
-        self.log.info("%s: %d/%d (%.0f %%), %.1f s elapsed, ~%.1f s left", self.label, done, self.total,
-                      100 * frac, el, left)
+        self.log.info(
+            "%s: %d/%d (%.0f %%), %.1f s elapsed, ~%.1f s left", self.label, done, self.total, 100 * frac, el, left
+        )
 
 
 RESUME_HINT = "run the same command again to resume: finished jobs and FE runs are kept (make reproduce, or see README)"
@@ -218,24 +207,3 @@ def failure_report(log_dir: str | Path = "logs", since: float = 0.0, stream=None
     lines.append("=" * 100)
     print("\n".join(lines), file=out)
     out.flush()
-
-
-def current_umask() -> int:
-    """The process umask (read from /proc where it exists, so the process umask is never changed, else set and
-    restored at once)."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except OSError:
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def honour_umask(path: str | Path) -> None:
-    """Give ``path`` the permissions a plain ``open(path, "w")`` would: ``0o666 & ~umask``
-    (``tempfile.mkstemp`` creates files 0600 whatever the umask)."""
-    os.chmod(path, 0o666 & ~current_umask())

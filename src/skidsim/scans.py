@@ -5,6 +5,9 @@
 * any other suffix -> the optional SurfaceTopography adapter (``pip install SurfaceTopography``, the
   ``formats`` extra), imported lazily. SurfaceTopography arrays are ``(nx, ny)`` = (x, y): they are
   transposed to the Surface layout ``(rows = y, cols = x)``; its unit (m, mm, um/µm, nm) is converted to mm.
+
+Between workflow rules, named surfaces travel in one ``.npz`` (:func:`save_surfaces` / :func:`load_surfaces`:
+heights in mm, float64, with their spacings in mm).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from skidsim.atomic import atomic_path
 from skidsim.errors import ScanFormatError
 from skidsim.gridtext import read_grid_text
 from skidsim.surface import Surface
@@ -66,10 +70,13 @@ def read_with_surfacetopography(path, module: str = "SurfaceTopography") -> Surf
     try:
         st = importlib.import_module(module)
     except ImportError:
-        raise ScanFormatError(path, f"a file of a native format ({', '.join(NATIVE_SUFFIXES)})",
-                              got=path.suffix or "no suffix",
-                              hint="other instrument formats need the optional package SurfaceTopography: "
-                                   "pip install SurfaceTopography (extra 'formats')") from None
+        raise ScanFormatError(
+            path,
+            f"a file of a native format ({', '.join(NATIVE_SUFFIXES)})",
+            got=path.suffix or "no suffix",
+            hint="other instrument formats need the optional package SurfaceTopography: "
+            "pip install SurfaceTopography (extra 'formats')",
+        ) from None
     try:
         topo = st.read_topography(str(path))
     except Exception as exc:  # the reader raises many types for files it cannot read
@@ -86,5 +93,32 @@ def read_with_surfacetopography(path, module: str = "SurfaceTopography") -> Surf
     h = np.asarray(h, dtype=np.float64).T * scale  # -> (ny, nx) = (rows, cols)
     nx, ny = topo.nb_grid_pts
     sx, sy = topo.physical_sizes
-    return Surface(np.ascontiguousarray(h), dx=sx / nx * scale, dy=sy / ny * scale, name=path.stem,
-                   meta={"source_format": "SurfaceTopography", "source_unit": unit})
+    return Surface(
+        np.ascontiguousarray(h),
+        dx=sx / nx * scale,
+        dy=sy / ny * scale,
+        name=path.stem,
+        meta={"source_format": "SurfaceTopography", "source_unit": unit},
+    )
+
+
+def save_surfaces(path: str | Path, surfaces: dict[str, Surface]) -> None:
+    """Store named surfaces (heights in mm, float64) with their spacings (mm) in one ``.npz``, atomically."""
+    arrays = {}
+    for name, s in surfaces.items():
+        arrays[f"{name}__heights_mm"] = s.heights
+        arrays[f"{name}__spacing_mm"] = np.array([s.dx, s.dy])
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+
+def load_surfaces(path: str | Path) -> dict[str, Surface]:
+    """Inverse of :func:`save_surfaces`: ``{name: Surface}`` (heights mm, spacings mm)."""
+    out = {}
+    with np.load(path) as z:
+        names = sorted({k.split("__")[0] for k in z.files})
+        for n in names:
+            dx, dy = z[f"{n}__spacing_mm"]
+            out[n] = Surface(z[f"{n}__heights_mm"], float(dx), float(dy), name=n)
+    return out

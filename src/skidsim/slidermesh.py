@@ -46,8 +46,14 @@ class SliderMesh:
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @classmethod
-    def box(cls, length_mm: float = 20.0, width_mm: float = 16.0, thickness_mm: float = 6.0,
-            element_mm: float = 0.5, origin_m=(0.0, 0.0, 0.0)) -> "SliderMesh":
+    def box(
+        cls,
+        length_mm: float = 20.0,
+        width_mm: float = 16.0,
+        thickness_mm: float = 6.0,
+        element_mm: float = 0.5,
+        origin_m=(0.0, 0.0, 0.0),
+    ) -> SliderMesh:
         """Mesh a ``length x width x thickness`` (mm) box with elements close to ``element_mm``.
 
         The number of elements along each edge is ``max(1, round(edge / element_mm))``; the element edge is

@@ -82,15 +82,15 @@ class Surface:
         """Row coordinates in mm."""
         return np.arange(self.shape[0]) * self.dy
 
-    def with_heights(self, heights: np.ndarray, **changes) -> "Surface":
+    def with_heights(self, heights: np.ndarray, **changes) -> Surface:
         """A copy with new heights (same grid) and optional other field changes."""
         return replace(self, heights=np.asarray(heights, dtype=np.float64), **changes)
 
-    def crop(self, rows: slice, cols: slice) -> "Surface":
+    def crop(self, rows: slice, cols: slice) -> Surface:
         """A sub-surface (view copied) by row and column slices."""
         return self.with_heights(np.array(self.heights[rows, cols]))
 
-    def crop_y_centred(self, extent_mm: float) -> "Surface":
+    def crop_y_centred(self, extent_mm: float) -> Surface:
         """The centred band of rows spanning at most ``extent_mm`` (mm) along y; all columns kept.
 
         ``round(extent_mm / dy) + 1`` rows (capped at the scan), starting at ``(rows - n) // 2``; the band keeps

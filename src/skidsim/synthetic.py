@@ -33,7 +33,6 @@ Conventions that change numbers (all in ``docs/synthetic-campaign.md``):
 from __future__ import annotations
 
 import copy
-import datetime as _dt
 import json
 import math
 import zlib
@@ -46,56 +45,136 @@ from scipy import fft as sfft
 from scipy import ndimage
 
 from . import truth as _truth
+from .atomic import atomic_path, write_text
 from .errors import ConfigError
-from .runlog import atomic_path
 from .surface import Surface
 
 # ------------------------------------------------------------------------------------------------ defaults
 
 #: Study Table 1 (LTPP SPS-10, Oklahoma US-66): binder, mix, aggregate combination per section.
 SECTION_DESIGNS: dict = {
-    "E1": {"section_type": "experimental", "binder": "PG 70-28", "mix": "HMA", "comment": "HMA with RAP + RAS",
-           "aggregate_combination": 1},
-    "E2": {"section_type": "experimental", "binder": "PG 70-28", "mix": "WMA foaming",
-           "comment": "WMA foaming with RAP + RAS", "aggregate_combination": 1},
-    "E3": {"section_type": "experimental", "binder": "PG 70-28", "mix": "WMA chemical",
-           "comment": "WMA chemical with RAP + RAS", "aggregate_combination": 1},
-    "E4": {"section_type": "experimental", "binder": "PG 64-22", "mix": "WMA chemical",
-           "comment": "WMA chemical with RAP + RAS", "aggregate_combination": 1},
-    "E5": {"section_type": "experimental", "binder": "PG 58-28", "mix": "WMA chemical",
-           "comment": "WMA chemical with RAP + RAS", "aggregate_combination": 1},
-    "E6": {"section_type": "experimental", "binder": "PG 70-28", "mix": "WMA stone mix",
-           "comment": "WMA stone mix with mineral filler", "aggregate_combination": 2},
-    **{f"C{i}": {"section_type": "control", "binder": "PG 70-28", "mix": "HMA", "comment": "HMA with RAP",
-                 "aggregate_combination": 3} for i in range(1, 7)},
+    "E1": {
+        "section_type": "experimental",
+        "binder": "PG 70-28",
+        "mix": "HMA",
+        "comment": "HMA with RAP + RAS",
+        "aggregate_combination": 1,
+    },
+    "E2": {
+        "section_type": "experimental",
+        "binder": "PG 70-28",
+        "mix": "WMA foaming",
+        "comment": "WMA foaming with RAP + RAS",
+        "aggregate_combination": 1,
+    },
+    "E3": {
+        "section_type": "experimental",
+        "binder": "PG 70-28",
+        "mix": "WMA chemical",
+        "comment": "WMA chemical with RAP + RAS",
+        "aggregate_combination": 1,
+    },
+    "E4": {
+        "section_type": "experimental",
+        "binder": "PG 64-22",
+        "mix": "WMA chemical",
+        "comment": "WMA chemical with RAP + RAS",
+        "aggregate_combination": 1,
+    },
+    "E5": {
+        "section_type": "experimental",
+        "binder": "PG 58-28",
+        "mix": "WMA chemical",
+        "comment": "WMA chemical with RAP + RAS",
+        "aggregate_combination": 1,
+    },
+    "E6": {
+        "section_type": "experimental",
+        "binder": "PG 70-28",
+        "mix": "WMA stone mix",
+        "comment": "WMA stone mix with mineral filler",
+        "aggregate_combination": 2,
+    },
+    **{
+        f"C{i}": {
+            "section_type": "control",
+            "binder": "PG 70-28",
+            "mix": "HMA",
+            "comment": "HMA with RAP",
+            "aggregate_combination": 3,
+        }
+        for i in range(1, 7)
+    },
 }
 
 #: Aggregate components: size range (mm, the part rendered as individual stones), plan exponent range,
 #: vertical exponent range, micro-amplitude factor (relative to the site's aggregate micro Sq), aspect range.
 COMPONENTS: dict = {
-    "chips_5_8": {"size_mm": [4.75, 15.9], "plan_exponent": [2.5, 4.0], "vertical_exponent": [2.5, 3.5],
-                  "aspect": [0.55, 0.95], "micro_factor": 1.0},
-    "screens": {"size_mm": [2.36, 6.3], "plan_exponent": [2.5, 4.0], "vertical_exponent": [2.0, 3.0],
-                "aspect": [0.55, 0.95], "micro_factor": 1.0},
-    "stone_sand": {"size_mm": [1.0, 4.75], "plan_exponent": [2.2, 3.5], "vertical_exponent": [2.0, 3.0],
-                   "aspect": [0.6, 1.0], "micro_factor": 0.9},
-    "sand": {"size_mm": [1.0, 2.36], "plan_exponent": [2.0, 2.4], "vertical_exponent": [2.0, 2.2],
-             "aspect": [0.7, 1.0], "micro_factor": 0.6},
-    "rap": {"size_mm": [2.36, 12.5], "plan_exponent": [2.0, 3.0], "vertical_exponent": [2.0, 2.5],
-            "aspect": [0.6, 1.0], "micro_factor": 0.5},
-    "ras": {"size_mm": [1.5, 6.0], "plan_exponent": [2.5, 4.0], "vertical_exponent": [4.0, 6.0],
-            "aspect": [0.4, 0.8], "micro_factor": 0.8},
+    "chips_5_8": {
+        "size_mm": [4.75, 15.9],
+        "plan_exponent": [2.5, 4.0],
+        "vertical_exponent": [2.5, 3.5],
+        "aspect": [0.55, 0.95],
+        "micro_factor": 1.0,
+    },
+    "screens": {
+        "size_mm": [2.36, 6.3],
+        "plan_exponent": [2.5, 4.0],
+        "vertical_exponent": [2.0, 3.0],
+        "aspect": [0.55, 0.95],
+        "micro_factor": 1.0,
+    },
+    "stone_sand": {
+        "size_mm": [1.0, 4.75],
+        "plan_exponent": [2.2, 3.5],
+        "vertical_exponent": [2.0, 3.0],
+        "aspect": [0.6, 1.0],
+        "micro_factor": 0.9,
+    },
+    "sand": {
+        "size_mm": [1.0, 2.36],
+        "plan_exponent": [2.0, 2.4],
+        "vertical_exponent": [2.0, 2.2],
+        "aspect": [0.7, 1.0],
+        "micro_factor": 0.6,
+    },
+    "rap": {
+        "size_mm": [2.36, 12.5],
+        "plan_exponent": [2.0, 3.0],
+        "vertical_exponent": [2.0, 2.5],
+        "aspect": [0.6, 1.0],
+        "micro_factor": 0.5,
+    },
+    "ras": {
+        "size_mm": [1.5, 6.0],
+        "plan_exponent": [2.5, 4.0],
+        "vertical_exponent": [4.0, 6.0],
+        "aspect": [0.4, 0.8],
+        "micro_factor": 0.8,
+    },
 }
 
 #: Study Table 1 aggregate combinations (mass %; components finer than the rendered sizes are mastic) and
 #: the surface structure of each mix (area share of rendered stones per mass %, mortar and void depths).
 GRADATIONS: dict = {
-    "1": {"fractions": {"chips_5_8": 38, "stone_sand": 35, "sand": 12, "rap": 12, "ras": 3},
-          "protrusion_ratio": 0.10, "void_fraction": 0.20, "void_depth_ratio": 0.18},
-    "2": {"fractions": {"chips_5_8": 90, "mineral_filler": 10},
-          "protrusion_ratio": 0.22, "void_fraction": 0.30, "void_depth_ratio": 0.26},
-    "3": {"fractions": {"chips_5_8": 34, "screens": 13, "stone_sand": 30, "sand": 13, "rap": 10},
-          "protrusion_ratio": 0.10, "void_fraction": 0.20, "void_depth_ratio": 0.18},
+    "1": {
+        "fractions": {"chips_5_8": 38, "stone_sand": 35, "sand": 12, "rap": 12, "ras": 3},
+        "protrusion_ratio": 0.10,
+        "void_fraction": 0.20,
+        "void_depth_ratio": 0.18,
+    },
+    "2": {
+        "fractions": {"chips_5_8": 90, "mineral_filler": 10},
+        "protrusion_ratio": 0.22,
+        "void_fraction": 0.30,
+        "void_depth_ratio": 0.26,
+    },
+    "3": {
+        "fractions": {"chips_5_8": 34, "screens": 13, "stone_sand": 30, "sand": 13, "rap": 10},
+        "protrusion_ratio": 0.10,
+        "void_fraction": 0.20,
+        "void_depth_ratio": 0.18,
+    },
 }
 
 DEFAULTS: dict = {
@@ -103,7 +182,7 @@ DEFAULTS: dict = {
     "sections": ["E1", "E2", "E3", "E4", "E5", "E6", "C1", "C2", "C3", "C4", "C5", "C6"],
     "sites_per_section": 3,
     "station_interval_ft": {"experimental": 100, "control": 300},
-    "visit_order": "shuffled",         # "shuffled" (seeded order of sections) or "listed"
+    "visit_order": "shuffled",  # "shuffled" (seeded order of sections) or "listed"
     "test_date": "2017-01-17",
     "start_time": "09:00",
     "minutes_per_site": 10.0,
@@ -114,22 +193,22 @@ DEFAULTS: dict = {
     "section_designs": SECTION_DESIGNS,
     "components": COMPONENTS,
     "gradations": GRADATIONS,
-    "shape": [2048, 2448],             # rows (y) x cols (x)
+    "shape": [2048, 2448],  # rows (y) x cols (x)
     "spacing_mm": 0.05,
     "z_quantum_mm": 0.01,
-    "stone_area_factor": 1.15,         # rendered stone area per unit mass share (overlap allowance)
-    "min_stone_mm": 1.0,               # smaller particles are part of the mastic
-    "top_sd_mm": 0.12,                 # scatter of coarse-stone tops below the roller plane
-    "protrusion_share": [0.25, 0.5],   # share of a small grain's size standing above the mortar
-    "site_depth_sd": 0.32,             # lognormal sd of the site's texture-depth factor on D_p, D_v
-    "site_void_sd": 0.4,               # lognormal sd of the site's factor on the void fraction (max 0.6)
-    "edge_round_mm": 0.15,             # Gaussian rounding (sigma) of the macro shape before the microtexture
-    "mastic_sd_mm": 0.06,              # smooth mortar undulation
+    "stone_area_factor": 1.15,  # rendered stone area per unit mass share (overlap allowance)
+    "min_stone_mm": 1.0,  # smaller particles are part of the mastic
+    "top_sd_mm": 0.12,  # scatter of coarse-stone tops below the roller plane
+    "protrusion_share": [0.25, 0.5],  # share of a small grain's size standing above the mortar
+    "site_depth_sd": 0.32,  # lognormal sd of the site's texture-depth factor on D_p, D_v
+    "site_void_sd": 0.4,  # lognormal sd of the site's factor on the void fraction (max 0.6)
+    "edge_round_mm": 0.15,  # Gaussian rounding (sigma) of the macro shape before the microtexture
+    "mastic_sd_mm": 0.06,  # smooth mortar undulation
     "mastic_corr_mm": 3.0,
     "void_corr_mm": 1.6,
     "micro_hurst": 0.75,
-    "micro_rolloff_mm": 1.0,           # wavelength of the self-affine roll-off
-    "micro_sq_mm": [0.016, 0.032],     # aggregate micro Sq (band < 0.5 mm), drawn per site
+    "micro_rolloff_mm": 1.0,  # wavelength of the self-affine roll-off
+    "micro_sq_mm": [0.016, 0.032],  # aggregate micro Sq (band < 0.5 mm), drawn per site
     "mastic_micro_factor": 0.35,
     "tilt_max_percent": 0.2,
     "speckle_fraction": 0.0005,
@@ -140,8 +219,17 @@ DEFAULTS: dict = {
     "truth": _truth.TRUTH_DEFAULTS,
 }
 
-METADATA_COLUMNS = ("section_type", "mix", "comment", "binder", "aggregate_combination", "station_ft",
-                    "test_order", "test_time", "test_date")
+METADATA_COLUMNS = (
+    "section_type",
+    "mix",
+    "comment",
+    "binder",
+    "aggregate_combination",
+    "station_ft",
+    "test_order",
+    "test_time",
+    "test_date",
+)
 
 
 def default_config() -> dict:
@@ -167,8 +255,10 @@ def resolve_config(cfg: dict | None) -> dict:
             raise ConfigError(f"synthetic.sections: section {sec!r} has no entry in synthetic.section_designs")
         comb = str(out["section_designs"][sec]["aggregate_combination"])
         if comb not in out["gradations"]:
-            raise ConfigError(f"synthetic.section_designs.{sec}.aggregate_combination: {comb!r} is not in "
-                              f"synthetic.gradations {sorted(out['gradations'])}")
+            raise ConfigError(
+                f"synthetic.section_designs.{sec}.aggregate_combination: {comb!r} is not in "
+                f"synthetic.gradations {sorted(out['gradations'])}"
+            )
     if int(out["sites_per_section"]) < 1:
         raise ConfigError("synthetic.sites_per_section: expected an integer >= 1")
     shape = out["shape"]
@@ -203,6 +293,7 @@ def _merged(a: dict, b: dict) -> dict:
 
 # ------------------------------------------------------------------------------------------------ design
 
+
 def _minutes(hhmm: str) -> float:
     h, m = str(hhmm).split(":")
     return 60.0 * int(h) + float(m)
@@ -232,14 +323,27 @@ def design_campaign(cfg: dict | None = None) -> pd.DataFrame:
         d = c["section_designs"][sec]
         if oi > 0:
             t += float(c["minutes_between_sections"])
-        interval = float(c["station_interval_ft"][d["section_type"]]) if isinstance(c["station_interval_ft"], dict) \
+        interval = (
+            float(c["station_interval_ft"][d["section_type"]])
+            if isinstance(c["station_interval_ft"], dict)
             else float(c["station_interval_ft"])
+        )
         for j in range(n_per):
             k += 1
-            rows.append({"site": f"{sec}-{j + 1}", "section": sec, "section_type": d["section_type"],
-                         "mix": d["mix"], "comment": d["comment"], "binder": d["binder"],
-                         "aggregate_combination": int(d["aggregate_combination"]),
-                         "station_ft": int(round(j * interval)), "test_order": k, "_t": t})
+            rows.append(
+                {
+                    "site": f"{sec}-{j + 1}",
+                    "section": sec,
+                    "section_type": d["section_type"],
+                    "mix": d["mix"],
+                    "comment": d["comment"],
+                    "binder": d["binder"],
+                    "aggregate_combination": int(d["aggregate_combination"]),
+                    "station_ft": int(round(j * interval)),
+                    "test_order": k,
+                    "_t": t,
+                }
+            )
             t += float(c["minutes_per_site"])
     df = pd.DataFrame(rows)
     tpk = _minutes(c["temperature_peak_time"])
@@ -260,6 +364,7 @@ def design_campaign(cfg: dict | None = None) -> pd.DataFrame:
 
 
 # ------------------------------------------------------------------------------------------------ surfaces
+
 
 @dataclass
 class SiteData:
@@ -289,7 +394,7 @@ def _smooth_field(rng: np.random.Generator, shape, dx_mm: float, corr_mm: float)
     g = ndimage.gaussian_filter(rng.standard_normal(cs), sigma=corr_mm / (f * dx_mm) / 2.0, mode="wrap")
     g /= g.std()
     if f == 1:
-        return g[:shape[0], :shape[1]]
+        return g[: shape[0], : shape[1]]
     yi = np.arange(shape[0]) / f
     xi = np.arange(shape[1]) / f
     y0 = yi.astype(int)
@@ -303,8 +408,9 @@ def _smooth_field(rng: np.random.Generator, shape, dx_mm: float, corr_mm: float)
     return out
 
 
-def micro_field(rng: np.random.Generator, shape, dx_mm: float, hurst: float, rolloff_mm: float,
-                band_mm: float = 0.5) -> np.ndarray:
+def micro_field(
+    rng: np.random.Generator, shape, dx_mm: float, hurst: float, rolloff_mm: float, band_mm: float = 0.5
+) -> np.ndarray:
     """Self-affine Gaussian field, PSD ~ (q_r^2 + q^2)^-(1 + H), whose band of wavelengths below ``band_mm``
     has expected RMS 1 (mm after scaling by the caller's amplitude)."""
     ny, nx = shape
@@ -382,18 +488,18 @@ def _render(rng, c: dict, comb: dict, shape, dx: float, depth_factor: float):
             cx = -margin + U[k, 2 * t] * (W + 2 * margin)
             cy = -margin + U[k, 2 * t + 1] * (H + 2 * margin)
             gi, gj = int((cy + margin) / cell), int((cx + margin) / cell)
-            sub = occ[max(0, gi - rr):gi + rr + 1, max(0, gj - rr):gj + rr + 1]
+            sub = occ[max(0, gi - rr) : gi + rr + 1, max(0, gj - rr) : gj + rr + 1]
             if sub.mean() < 0.35:
                 break
         else:
             continue
         if rr not in disks:
-            yy, xx = np.ogrid[-rr:rr + 1, -rr:rr + 1]
+            yy, xx = np.ogrid[-rr : rr + 1, -rr : rr + 1]
             disks[rr] = (yy * yy + xx * xx) <= rr * rr
         s_i0, s_j0 = max(0, gi - rr), max(0, gj - rr)
-        sub = occ[s_i0:gi + rr + 1, s_j0:gj + rr + 1]
+        sub = occ[s_i0 : gi + rr + 1, s_j0 : gj + rr + 1]
         di, dj = s_i0 - (gi - rr), s_j0 - (gj - rr)
-        sub |= disks[rr][di:di + sub.shape[0], dj:dj + sub.shape[1]]
+        sub |= disks[rr][di : di + sub.shape[0], dj : dj + sub.shape[1]]
         n_placed += 1
         theta = np.pi * U[k, 12]
         pe, ve = comp["plan_exponent"], comp["vertical_exponent"]
@@ -434,8 +540,13 @@ def _render(rng, c: dict, comb: dict, shape, dx: float, depth_factor: float):
         heights = ndimage.gaussian_filter(heights, er, mode="nearest", truncate=3.0)
     label[on_mastic] = 0
     amp = np.asarray(micro_of)[label]
-    info = {"coarse_size_mm": d_c, "mortar_depth_mm": D_p, "void_depth_mm": D_v, "stones_placed": n_placed,
-            "stone_area_fraction": float(1.0 - on_mastic.mean())}
+    info = {
+        "coarse_size_mm": d_c,
+        "mortar_depth_mm": D_p,
+        "void_depth_mm": D_v,
+        "stones_placed": n_placed,
+        "stone_area_fraction": float(1.0 - on_mastic.mean()),
+    }
     return heights, amp, info
 
 
@@ -470,7 +581,7 @@ def _scanner(rng, heights: np.ndarray, c: dict, dx: float) -> np.ndarray:
             uu = (X - cj) * math.cos(th) + (Y - ci) * math.sin(th)
             vv = -(X - cj) * math.sin(th) + (Y - ci) * math.cos(th)
             inside = (uu / ra) ** 2 + (vv / rb) ** 2 <= 1.0
-            idx = (Y[inside] * nx + X[inside])
+            idx = Y[inside] * nx + X[inside]
             new = idx[~mask[idx]]
             if new.size == 0:
                 continue
@@ -513,8 +624,7 @@ def synthesize_surface(row, cfg: dict | None = None):
     c = resolve_config(cfg)
     row = dict(row)
     site = str(row["site"])
-    comb_key = str(row.get("aggregate_combination",
-                           c["section_designs"][str(row["section"])]["aggregate_combination"]))
+    comb_key = str(row.get("aggregate_combination", c["section_designs"][str(row["section"])]["aggregate_combination"]))
     if comb_key not in c["gradations"]:
         raise ConfigError(f"synthetic.gradations: no aggregate combination {comb_key!r} (site {site})")
     comb = c["gradations"][comb_key]
@@ -528,10 +638,13 @@ def synthesize_surface(row, cfg: dict | None = None):
     void_factor = float(np.exp(rng_layout.normal(0.0, float(c["site_void_sd"]))))
     comb = dict(comb, void_fraction=float(np.clip(float(comb["void_fraction"]) * void_factor, 0.0, 0.6)))
     heights, amp, info = _render(rng_layout, c, comb, shape, dx, depth_factor)
-    heights += sq_agg * amp * micro_field(rng_micro, shape, dx, float(c["micro_hurst"]),
-                                          float(c["micro_rolloff_mm"]))
-    info.update(site_depth_factor=depth_factor, aggregate_micro_sq_mm=sq_agg, aggregate_combination=comb_key,
-                void_fraction=comb["void_fraction"])
+    heights += sq_agg * amp * micro_field(rng_micro, shape, dx, float(c["micro_hurst"]), float(c["micro_rolloff_mm"]))
+    info.update(
+        site_depth_factor=depth_factor,
+        aggregate_micro_sq_mm=sq_agg,
+        aggregate_combination=comb_key,
+        void_fraction=comb["void_fraction"],
+    )
     return heights, info
 
 
@@ -559,10 +672,15 @@ def generate_site(row, cfg: dict | None = None) -> SiteData:
     resid = mu_meas / mu_tr - 1.0
     tr["dft_noise"] = {"cv_configured": float(c["dft"]["noise_cv"]), "cv_realised": float(resid.std())}
     scan = _scanner(np.random.default_rng(ss[2]), heights, c, dx)
-    meta = {"Date": f"{row.get('test_date', c['test_date'])}T{row.get('test_time', '12:00')}:00+00:00",
-            "Creator": "skidsim.synthetic", "InstrumentManufacturer": "skidsim (simulated)",
-            "InstrumentModel": "LS-40-like synthetic scanner", "ProbingSystemType": "NonContacting",
-            "Comment": f"synthetic site {site}, seed {c['seed']}", "z_quantum_mm": float(c["z_quantum_mm"])}
+    meta = {
+        "Date": f"{row.get('test_date', c['test_date'])}T{row.get('test_time', '12:00')}:00+00:00",
+        "Creator": "skidsim.synthetic",
+        "InstrumentManufacturer": "skidsim (simulated)",
+        "InstrumentModel": "LS-40-like synthetic scanner",
+        "ProbingSystemType": "NonContacting",
+        "Comment": f"synthetic site {site}, seed {c['seed']}",
+        "z_quantum_mm": float(c["z_quantum_mm"]),
+    }
     surface = Surface(scan, dx, dx, name=site, meta=meta)
     clean = Surface(heights, dx, dx, name=f"{site} (clean)")
     dft = pd.DataFrame({"speed_kmh": speeds, "mu": mu_meas})
@@ -570,6 +688,7 @@ def generate_site(row, cfg: dict | None = None) -> SiteData:
 
 
 # ------------------------------------------------------------------------------------------------ writing
+
 
 def write_site(site_data: SiteData, scan_path, dft_path, truth_path) -> None:
     """Write the scan (X3P, int16/int32 codes with 0.01 mm increment), the DFT CSV (``speed_kmh,mu``, spin-down
@@ -584,12 +703,9 @@ def write_site(site_data: SiteData, scan_path, dft_path, truth_path) -> None:
     span = float(np.abs(hv).max()) / zq if hv.size else 0.0
     dtype = "I" if span < 32000 else "L"
     write_x3p(scan_path, s, dtype=dtype, z_increment_mm=zq)
-    with atomic_path(dft_path) as tmp:
-        lines = ["speed_kmh,mu"] + [f"{v:.10g},{m:.10g}" for v, m in zip(site_data.dft["speed_kmh"],
-                                                                          site_data.dft["mu"])]
-        Path(tmp).write_text("\n".join(lines) + "\n")
-    with atomic_path(truth_path) as tmp:
-        Path(tmp).write_text(json.dumps(site_data.truth, indent=1, sort_keys=True) + "\n")
+    lines = ["speed_kmh,mu"] + [f"{v:.10g},{m:.10g}" for v, m in zip(site_data.dft["speed_kmh"], site_data.dft["mu"])]
+    write_text(dft_path, "\n".join(lines) + "\n")
+    write_text(truth_path, json.dumps(site_data.truth, indent=1, sort_keys=True) + "\n")
 
 
 def write_sites_csv(design_df: pd.DataFrame, campaign_dir, path) -> None:

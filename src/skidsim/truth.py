@@ -48,20 +48,34 @@ from .errors import ConfigError
 #: Default truth-model settings (the workflow's ``truth:`` config section).
 TRUTH_DEFAULTS: dict = {
     "base": {
-        "mu_k0": 0.15,          # kinetic friction floor of wet rubber on a micro-smooth surface
-        "mu_k1": 0.60,          # adhesion gain from microtexture (saturating)
-        "sdq_ref": 0.50,        # micro-band RMS slope (dimensionless) at which adhesion reaches 63 % of mu_k1
-        "h0": 0.08,             # hysteresis share mu_s - mu_k at MPD = 0
-        "h1": 0.14,             # per mm of MPD
+        "mu_k0": 0.15,  # kinetic friction floor of wet rubber on a micro-smooth surface
+        "mu_k1": 0.60,  # adhesion gain from microtexture (saturating)
+        "sdq_ref": 0.50,  # micro-band RMS slope (dimensionless) at which adhesion reaches 63 % of mu_k1
+        "h0": 0.08,  # hysteresis share mu_s - mu_k at MPD = 0
+        "h1": 0.14,  # per mm of MPD
         "alpha0_s_per_m": 0.08,  # decay coefficient at MPD = mpd_ref_mm, s/m
         "mpd_ref_mm": 0.8,
         "alpha_exp": 0.5,
     },
     "effects": {
-        "temperature": {"enabled": True, "size": 1.0, "t_ref_c": 15.8, "tg_c": -50.0, "c1": 8.86, "c2_k": 101.6,
-                        "level_per_c": -0.005},
-        "drainage": {"enabled": True, "size": 0.4, "v_ref_kmh": 20.0, "sp_a_kmh": 14.2, "sp_b_kmh_per_mm": 89.7,
-                     "form": "ifi", "floor": 0.05},
+        "temperature": {
+            "enabled": True,
+            "size": 1.0,
+            "t_ref_c": 15.8,
+            "tg_c": -50.0,
+            "c1": 8.86,
+            "c2_k": 101.6,
+            "level_per_c": -0.005,
+        },
+        "drainage": {
+            "enabled": True,
+            "size": 0.4,
+            "v_ref_kmh": 20.0,
+            "sp_a_kmh": 14.2,
+            "sp_b_kmh_per_mm": 89.7,
+            "form": "ifi",
+            "floor": 0.05,
+        },
         "metadata": {"enabled": False, "column": "test_order", "size": -0.004, "reference": 1.0},
         "section": {"enabled": False, "column": "section", "offsets": {"E6": 0.05}},
     },
@@ -81,15 +95,17 @@ def default_truth_config() -> dict:
 
 # ----------------------------------------------------------------------------------------------- descriptors
 
-def mpd_mm(heights_mm: np.ndarray, dx_mm: float, *, segment_mm: float = 100.0, row_step: int = 8,
-           bin_mm: float = 0.5) -> float:
+
+def mpd_mm(
+    heights_mm: np.ndarray, dx_mm: float, *, segment_mm: float = 100.0, row_step: int = 8, bin_mm: float = 0.5
+) -> float:
     """Mean profile depth in mm of profiles along x (columns), ISO 13473-1 style (see module docstring).
 
     Rows ``0, row_step, 2*row_step, ...`` are used; a profile with less than 90 % valid points is skipped.
     Raises ``ValueError`` when no profile is usable.
     """
     h = np.asarray(heights_mm, dtype=float)
-    prof = h[::max(1, int(row_step))]
+    prof = h[:: max(1, int(row_step))]
     nb = max(1, int(round(bin_mm / dx_mm)))
     x = np.arange(prof.shape[1])
     rows = []
@@ -104,14 +120,14 @@ def mpd_mm(heights_mm: np.ndarray, dx_mm: float, *, segment_mm: float = 100.0, r
         raise ValueError("mpd_mm: no profile with at least 90 % valid points")
     p = np.array(rows)
     nbin = p.shape[1] // nb
-    p = p[:, :nbin * nb].reshape(p.shape[0], nbin, nb).mean(axis=2)
+    p = p[:, : nbin * nb].reshape(p.shape[0], nbin, nb).mean(axis=2)
     step = nb * dx_mm
     nseg = min(nbin, int(round(segment_mm / step)))
     nseg -= nseg % 2
     if nseg < 4:
         raise ValueError(f"mpd_mm: profile of {nbin * step:g} mm is too short")
     start = (nbin - nseg) // 2
-    seg = p[:, start:start + nseg]
+    seg = p[:, start : start + nseg]
     t = np.arange(nseg) - (nseg - 1) / 2.0
     slope = (seg * t).sum(axis=1) / (t * t).sum()
     seg = seg - slope[:, None] * t[None, :]
@@ -129,7 +145,7 @@ def micro_band(heights_mm: np.ndarray, dx_mm: float, dy_mm: float, cutoff_mm: fl
     bad = ~np.isfinite(h)
     if bad.any():
         h = np.where(bad, np.nanmedian(h), h)
-    k = math.sqrt(math.log(2.0) / (2.0 * math.pi ** 2))  # 0.1874: sigma / cutoff of the Gaussian filter
+    k = math.sqrt(math.log(2.0) / (2.0 * math.pi**2))  # 0.1874: sigma / cutoff of the Gaussian filter
     low = ndimage.gaussian_filter(h, sigma=(k * cutoff_mm / dy_mm, k * cutoff_mm / dx_mm), mode="reflect")
     r = h - low
     r[bad] = np.nan
@@ -163,6 +179,7 @@ def texture_descriptors(heights_mm: np.ndarray, dx_mm: float, dy_mm: float) -> d
 
 # ----------------------------------------------------------------------------------------------- the model
 
+
 def check_truth_config(cfg: dict) -> dict:
     """The truth config merged onto the defaults; unknown keys or effects raise :class:`ConfigError`."""
     out = default_truth_config()
@@ -178,8 +195,9 @@ def check_truth_config(cfg: dict) -> dict:
             raise ConfigError(f"truth.effects: unknown effect {name!r}; expected one of {list(EFFECT_ORDER)}")
         for key, val in (eff or {}).items():
             if key not in out["effects"][name]:
-                raise ConfigError(f"truth.effects.{name}: unknown key {key!r}; expected one of "
-                                  f"{sorted(out['effects'][name])}")
+                raise ConfigError(
+                    f"truth.effects.{name}: unknown key {key!r}; expected one of {sorted(out['effects'][name])}"
+                )
             out["effects"][name][key] = copy.deepcopy(val)
     form = out["effects"]["drainage"]["form"]
     if form not in DRAINAGE_FORMS:
@@ -187,8 +205,9 @@ def check_truth_config(cfg: dict) -> dict:
     return out
 
 
-def wlf_log10_shift(temperature_c: float, t_ref_c: float, tg_c: float = -50.0, c1: float = 8.86,
-                    c2_k: float = 101.6) -> float:
+def wlf_log10_shift(
+    temperature_c: float, t_ref_c: float, tg_c: float = -50.0, c1: float = 8.86, c2_k: float = 101.6
+) -> float:
     """log10 a_T of the WLF equation re-referenced to ``t_ref_c`` (deg C).
 
     WLF with the universal constants holds about ``T_s = Tg + 50 K``:
@@ -211,8 +230,12 @@ def base_parameters(descriptors: dict, base_cfg: dict) -> dict:
     adhesion = b["mu_k0"] + b["mu_k1"] * (1.0 - math.exp(-descriptors["micro_sdq"] / b["sdq_ref"]))
     hysteresis = b["h0"] + b["h1"] * descriptors["mpd_mm"]
     alpha = b["alpha0_s_per_m"] * (b["mpd_ref_mm"] / max(descriptors["mpd_mm"], 0.05)) ** b["alpha_exp"]
-    return {"mu_s": adhesion + hysteresis, "mu_k": adhesion, "alpha_s_per_m": alpha,
-            "terms": {"adhesion_mu_k": adhesion, "hysteresis_mu_s_minus_mu_k": hysteresis}}
+    return {
+        "mu_s": adhesion + hysteresis,
+        "mu_k": adhesion,
+        "alpha_s_per_m": alpha,
+        "terms": {"adhesion_mu_k": adhesion, "hysteresis_mu_s_minus_mu_k": hysteresis},
+    }
 
 
 def site_truth(descriptors: dict, row: dict, truth_cfg: dict | None = None) -> dict:
@@ -228,14 +251,25 @@ def site_truth(descriptors: dict, row: dict, truth_cfg: dict | None = None) -> d
     t = eff_cfg["temperature"]
     temp_c = float(row["temperature_c"])
     log_at = float(t["size"]) * wlf_log10_shift(temp_c, t["t_ref_c"], t["tg_c"], t["c1"], t["c2_k"])
-    effects["temperature"] = {"enabled": bool(t["enabled"]), "temperature_c": temp_c, "log10_a_T": log_at,
-                              "a_T": 10.0 ** log_at,
-                              "level_factor": 1.0 + t["level_per_c"] * (temp_c - t["t_ref_c"]), "config": t}
+    effects["temperature"] = {
+        "enabled": bool(t["enabled"]),
+        "temperature_c": temp_c,
+        "log10_a_T": log_at,
+        "a_T": 10.0**log_at,
+        "level_factor": 1.0 + t["level_per_c"] * (temp_c - t["t_ref_c"]),
+        "config": t,
+    }
     d = eff_cfg["drainage"]
     sp = d["sp_a_kmh"] + d["sp_b_kmh_per_mm"] * descriptors["mpd_mm"]
-    effects["drainage"] = {"enabled": bool(d["enabled"]), "sp_kmh": sp, "size": float(d["size"]),
-                           "v_ref_kmh": float(d["v_ref_kmh"]), "form": str(d.get("form", "ifi")),
-                           "floor": float(d.get("floor", 0.05)), "config": d}
+    effects["drainage"] = {
+        "enabled": bool(d["enabled"]),
+        "sp_kmh": sp,
+        "size": float(d["size"]),
+        "v_ref_kmh": float(d["v_ref_kmh"]),
+        "form": str(d.get("form", "ifi")),
+        "floor": float(d.get("floor", 0.05)),
+        "config": d,
+    }
     m = eff_cfg["metadata"]
     if m["enabled"]:
         if m["column"] not in row:
@@ -244,8 +278,13 @@ def site_truth(descriptors: dict, row: dict, truth_cfg: dict | None = None) -> d
         factor = 1.0 + float(m["size"]) * (x - float(m["reference"]))
     else:
         x, factor = None, 1.0
-    effects["metadata"] = {"enabled": bool(m["enabled"]), "column": m["column"], "value": x, "factor": factor,
-                           "config": m}
+    effects["metadata"] = {
+        "enabled": bool(m["enabled"]),
+        "column": m["column"],
+        "value": x,
+        "factor": factor,
+        "config": m,
+    }
     s = eff_cfg["section"]
     if s["enabled"]:
         if s["column"] not in row:
@@ -254,8 +293,13 @@ def site_truth(descriptors: dict, row: dict, truth_cfg: dict | None = None) -> d
         offset = float((s["offsets"] or {}).get(key, 0.0))
     else:
         key, offset = None, 0.0
-    effects["section"] = {"enabled": bool(s["enabled"]), "column": s["column"], "value": key, "offset_mu": offset,
-                          "config": s}
+    effects["section"] = {
+        "enabled": bool(s["enabled"]),
+        "column": s["column"],
+        "value": key,
+        "offset_mu": offset,
+        "config": s,
+    }
     truth = {"model": "skidsim.truth/1", "descriptors": dict(descriptors), "base": base, "effects": effects}
     v = np.array(REPORT_SPEEDS_KMH)
     steps = mu_steps(v, truth)
@@ -273,8 +317,9 @@ def mu_steps(speed_kmh, truth: dict) -> dict:
     out = {"base": b["mu_k"] + (b["mu_s"] - b["mu_k"]) * np.exp(-b["alpha_s_per_m"] * s)}
     cur = out["base"]
     if e["temperature"]["enabled"]:
-        cur = (b["mu_k"] + (b["mu_s"] - b["mu_k"]) * np.exp(-b["alpha_s_per_m"] * e["temperature"]["a_T"] * s)) \
-            * e["temperature"]["level_factor"]
+        cur = (b["mu_k"] + (b["mu_s"] - b["mu_k"]) * np.exp(-b["alpha_s_per_m"] * e["temperature"]["a_T"] * s)) * e[
+            "temperature"
+        ]["level_factor"]
     out["temperature"] = cur
     if e["drainage"]["enabled"]:
         cur = cur * drainage_factor(v, e["drainage"])
@@ -323,11 +368,11 @@ def contributions(speed_kmh, truth: dict) -> dict:
 
 DFT_DEFAULTS: dict = {
     "speed_start_kmh": [80.0, 86.0],  # spin-down start speed, drawn uniformly per site
-    "speed_end_kmh": 5.0,             # last sample at or above this speed
-    "step_kmh_at_mu_0_5": 0.8,       # speed drop between samples when mu = 0.5 (drop is proportional to mu)
-    "noise_cv": 0.03,                 # total multiplicative noise, coefficient of variation
-    "noise_ar1": 0.7,                 # lag-one correlation of the correlated part
-    "noise_white_share": 0.3,         # share of the variance that is white
+    "speed_end_kmh": 5.0,  # last sample at or above this speed
+    "step_kmh_at_mu_0_5": 0.8,  # speed drop between samples when mu = 0.5 (drop is proportional to mu)
+    "noise_cv": 0.03,  # total multiplicative noise, coefficient of variation
+    "noise_ar1": 0.7,  # lag-one correlation of the correlated part
+    "noise_white_share": 0.3,  # share of the variance that is white
     "mu_decimals": 3,
     "speed_decimals": 2,
 }

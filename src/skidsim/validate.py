@@ -11,13 +11,17 @@ Levels (cheapest first; each includes the ones before it):
   campaign directory (unless allowed), every named file exists, the DFT traces (read in full: they are small)
   covering every calibration and validation speed, config cross-checks. No scan is opened. The workflow runs
   this level when it builds its plan.
-* ``header``: plus DFT samples at 2 speeds within the smoothing window of each speed; each scan's header: X3P archive, checksum of main.xml, data sizes, a Z increment for
-  integer codes; spacing and extent against the strip and the texture band. Text grids are read in full.
+* ``header``: plus DFT samples at 2 speeds within the smoothing window of each speed; each scan's header: X3P
+  archive, checksum of main.xml, data sizes, a Z increment for integer codes; spacing and extent against the strip
+  and the texture band. Text grids are read in full.
 * ``full`` (default): plus every scan decoded: MD5 of data.bin and valid.bin, share of valid points, height span.
   About 0.2-0.4 s per LS-40 scan (2048 x 2448 points).
 
 What the configuration asks of the data is a :class:`Requirements`, built from the workflow's config mapping
-(:meth:`Requirements.from_config`) or left at the defaults of ``config/config.yaml``.
+(:meth:`Requirements.from_config`) or left at the defaults, which are those of the options dataclass of each config
+section (:class:`SpeedOptions`, :class:`IngestOptions`, :class:`~skidsim.reconstruct.MeshOptions`,
+:class:`~skidsim.texture.TextureOptions`, :class:`~skidsim.solver.mesh_study.MeshStudyOptions`);
+``tests/test_defaults.py`` keeps ``config/config.yaml`` and the schema equal to them.
 """
 
 from __future__ import annotations
@@ -26,17 +30,88 @@ import hashlib
 import math
 import os
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 
-from .errors import CampaignError, DftError, InputError
+from .errors import CampaignError, ConfigError, DftError, InputError
+from .reconstruct import MeshOptions
+from .solver.mesh_study import MeshStudyOptions
+from .texture.parameters import TextureOptions
 
 LEVELS = ("table", "header", "full")
 CONFIG = "config"
 """File name used in messages about configuration values (the merged config of the workflow or CLI)."""
+
+
+def options_from_dict(cls, section: str, d: dict | None):
+    """``cls(**d)`` for a config section ``d`` (missing keys keep the defaults, lists become tuples where the
+    default is a tuple); an unknown key raises :class:`ConfigError` naming the section and the known keys."""
+    d = dict(d or {})
+    known = {f.name: f for f in fields(cls)}
+    unknown = sorted(set(d) - set(known))
+    if unknown:
+        raise ConfigError(f"{section}: unknown key(s) {unknown}; expected a subset of {sorted(known)}")
+    for key, value in d.items():
+        if isinstance(value, list) and isinstance(known[key].default, tuple):
+            d[key] = tuple(value)
+    return cls(**d)
+
+
+@dataclass(frozen=True)
+class SpeedOptions:
+    """The DFT speeds of the analysis in km/h (config keys under ``speeds:``).
+
+    calibration_kmh: the study's back-calculation speeds (DFT20, DFT40, DFT60); validation_kmh: speeds never used
+    in calibration, only to validate. :func:`check_config` checks that the two sets are disjoint.
+    """
+
+    calibration_kmh: tuple[float, ...] = (20.0, 40.0, 60.0)
+    validation_kmh: tuple[float, ...] = (30.0, 50.0, 70.0)
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> SpeedOptions:
+        """From the ``speeds:`` config block (speeds as floats)."""
+        o = options_from_dict(cls, "speeds", d)
+        return cls(tuple(float(v) for v in o.calibration_kmh), tuple(float(v) for v in o.validation_kmh))
+
+
+#: ``ingest.check_scans`` -> validation level of :func:`check_campaign`.
+CHECK_SCANS_LEVEL = {"full": "full", "header": "header", False: "table"}
+
+
+@dataclass(frozen=True)
+class IngestOptions:
+    """How the campaign is read and checked (config keys under ``ingest:``).
+
+    check_scans: ``"full"`` (decode every scan), ``"header"`` (headers only) or ``False`` (sites.csv and DFT
+    traces only), see :data:`CHECK_SCANS_LEVEL`; min_valid_share: smallest share (0-1) of valid points in a scan;
+    max_height_span_mm: largest plausible range of valid heights, mm; allow_outside_campaign: accept sites.csv
+    paths outside the campaign directory; dft_smooth_window_kmh: half-width in km/h of the local linear fit that
+    reads the DFT at a speed (None: linear interpolation).
+    """
+
+    check_scans: str | bool = "full"
+    min_valid_share: float = 0.5
+    max_height_span_mm: float = 50.0
+    allow_outside_campaign: bool = False
+    dft_smooth_window_kmh: float | None = 5.0
+
+    def __post_init__(self) -> None:
+        if self.check_scans not in CHECK_SCANS_LEVEL:
+            raise ConfigError(f"ingest.check_scans: expected one of full, header, false, got {self.check_scans!r}")
+
+    @property
+    def level(self) -> str:
+        """The :data:`LEVELS` entry of ``check_scans``."""
+        return CHECK_SCANS_LEVEL[self.check_scans]
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> IngestOptions:
+        """From the ``ingest:`` config block."""
+        return options_from_dict(cls, "ingest", d)
 
 
 @dataclass(frozen=True)
@@ -59,20 +134,20 @@ class Requirements:
     mesh_study_site: the site the mesh study runs on (None: the first site); must be a site of the table.
     """
 
-    calibration_kmh: tuple[float, ...] = (20.0, 40.0, 60.0)
-    validation_kmh: tuple[float, ...] = (30.0, 50.0, 70.0)
-    smooth_window_kmh: float | None = 5.0
-    strip_length_mm: float = 114.3
-    strip_width_mm: float = 40.0
-    strip_x0_mm: float | None = None
-    strip_y0_mm: float | None = None
-    resolution_mm: float = 0.5
-    macro_mm: tuple[float, float] = (0.5, 50.0)
-    crop_y_mm: float | None = None
-    min_valid_share: float = 0.5
-    max_height_span_mm: float = 50.0
-    allow_outside: bool = False
-    mesh_study_site: str | None = None
+    calibration_kmh: tuple[float, ...] = SpeedOptions.calibration_kmh
+    validation_kmh: tuple[float, ...] = SpeedOptions.validation_kmh
+    smooth_window_kmh: float | None = IngestOptions.dft_smooth_window_kmh
+    strip_length_mm: float = MeshOptions.length_mm
+    strip_width_mm: float = MeshOptions.width_mm
+    strip_x0_mm: float | None = MeshOptions.x0_mm
+    strip_y0_mm: float | None = MeshOptions.y0_mm
+    resolution_mm: float = MeshOptions.resolution_mm
+    macro_mm: tuple[float, float] = TextureOptions.macro_mm
+    crop_y_mm: float | None = TextureOptions.crop_y_mm
+    min_valid_share: float = IngestOptions.min_valid_share
+    max_height_span_mm: float = IngestOptions.max_height_span_mm
+    allow_outside: bool = IngestOptions.allow_outside_campaign
+    mesh_study_site: str | None = MeshStudyOptions.site
     source: str = CONFIG
 
     @property
@@ -81,32 +156,32 @@ class Requirements:
         return tuple(sorted(set(self.calibration_kmh) | set(self.validation_kmh)))
 
     @classmethod
-    def from_config(cls, config: dict, source: str = CONFIG) -> "Requirements":
+    def from_config(cls, config: dict, source: str = CONFIG) -> Requirements:
         """From the workflow's config mapping (missing sections keep the defaults)."""
-        d = cls()
-        sp = config.get("speeds") or {}
-        ing = config.get("ingest") or {}
-        mesh = config.get("mesh") or {}
+        sp = SpeedOptions.from_dict(config.get("speeds"))
+        ing = IngestOptions.from_dict(config.get("ingest"))
+        mesh = MeshOptions.from_dict(config.get("mesh"))
         tex = config.get("texture") or {}
-        ms = config.get("mesh_study") or {}
+        ms = MeshStudyOptions.from_dict(config.get("mesh_study"))
 
         def opt(v):
             return None if v is None else float(v)
 
         return cls(
-            calibration_kmh=tuple(float(v) for v in sp.get("calibration_kmh", d.calibration_kmh)),
-            validation_kmh=tuple(float(v) for v in sp.get("validation_kmh", d.validation_kmh)),
-            smooth_window_kmh=opt(ing.get("dft_smooth_window_kmh", d.smooth_window_kmh)),
-            strip_length_mm=float(mesh.get("length_mm", d.strip_length_mm)),
-            strip_width_mm=float(mesh.get("width_mm", d.strip_width_mm)),
-            strip_x0_mm=opt(mesh.get("x0_mm")), strip_y0_mm=opt(mesh.get("y0_mm")),
-            resolution_mm=float(mesh.get("resolution_mm", d.resolution_mm)),
-            macro_mm=tuple(float(v) for v in tex.get("macro_mm", d.macro_mm)),
-            crop_y_mm=opt(tex.get("crop_y_mm")),
-            min_valid_share=float(ing.get("min_valid_share", d.min_valid_share)),
-            max_height_span_mm=float(ing.get("max_height_span_mm", d.max_height_span_mm)),
-            allow_outside=bool(ing.get("allow_outside_campaign", d.allow_outside)),
-            mesh_study_site=ms.get("site") if (ms.get("sizes_mm", [1]) or []) else None,
+            calibration_kmh=sp.calibration_kmh,
+            validation_kmh=sp.validation_kmh,
+            smooth_window_kmh=opt(ing.dft_smooth_window_kmh),
+            strip_length_mm=float(mesh.length_mm),
+            strip_width_mm=float(mesh.width_mm),
+            strip_x0_mm=opt(mesh.x0_mm),
+            strip_y0_mm=opt(mesh.y0_mm),
+            resolution_mm=float(mesh.resolution_mm),
+            macro_mm=tuple(float(v) for v in tex.get("macro_mm", TextureOptions.macro_mm)),
+            crop_y_mm=opt(tex.get("crop_y_mm", TextureOptions.crop_y_mm)),
+            min_valid_share=float(ing.min_valid_share),
+            max_height_span_mm=float(ing.max_height_span_mm),
+            allow_outside=bool(ing.allow_outside_campaign),
+            mesh_study_site=ms.site if ms.sizes_mm else None,
             source=source,
         )
 
@@ -129,29 +204,54 @@ def check_config(req: Requirements) -> list[InputError]:
             continue
         dup = sorted({v for v in speeds if list(speeds).count(v) > 1})
         if dup:
-            out.append(ConfigProblem(src, "distinct speeds (a repeated speed is silently dropped)", column=key,
-                                     got=_speeds_text(speeds), hint=f"{_speeds_text(dup)} km/h repeated"))
+            out.append(
+                ConfigProblem(
+                    src,
+                    "distinct speeds (a repeated speed is silently dropped)",
+                    column=key,
+                    got=_speeds_text(speeds),
+                    hint=f"{_speeds_text(dup)} km/h repeated",
+                )
+            )
         bad = [v for v in speeds if not (math.isfinite(v) and v > 0)]
         if bad:
             out.append(ConfigProblem(src, "speeds > 0 km/h", column=key, got=_speeds_text(speeds)))
     both = sorted(set(req.calibration_kmh) & set(req.validation_kmh))
     if both:
-        out.append(ConfigProblem(src, "validation speeds disjoint from calibration speeds (a speed used to calibrate "
-                                 "cannot validate)", column="speeds.validation_kmh", got=_speeds_text(req.validation_kmh),
-                                 hint=f"{_speeds_text(both)} km/h also in speeds.calibration_kmh "
-                                      f"{_speeds_text(req.calibration_kmh)}"))
+        out.append(
+            ConfigProblem(
+                src,
+                "validation speeds disjoint from calibration speeds (a speed used to calibrate cannot validate)",
+                column="speeds.validation_kmh",
+                got=_speeds_text(req.validation_kmh),
+                hint=f"{_speeds_text(both)} km/h also in speeds.calibration_kmh {_speeds_text(req.calibration_kmh)}",
+            )
+        )
     lo, hi = req.macro_mm
     if not (0 < lo < hi):
         out.append(ConfigProblem(src, "0 < low < high (mm)", column="texture.macro_mm", got=[lo, hi]))
     if req.smooth_window_kmh is not None and not req.smooth_window_kmh > 0:
-        out.append(ConfigProblem(src, "a positive window in km/h or null", column="ingest.dft_smooth_window_kmh",
-                                 got=req.smooth_window_kmh))
+        out.append(
+            ConfigProblem(
+                src,
+                "a positive window in km/h or null",
+                column="ingest.dft_smooth_window_kmh",
+                got=req.smooth_window_kmh,
+            )
+        )
     if req.crop_y_mm is not None and req.crop_y_mm < req.strip_width_mm:
-        out.append(ConfigProblem(src, f"a texture band at least as wide as the FE strip (mesh.width_mm "
-                                 f"{req.strip_width_mm:g} mm)", column="texture.crop_y_mm", got=req.crop_y_mm))
+        out.append(
+            ConfigProblem(
+                src,
+                f"a texture band at least as wide as the FE strip (mesh.width_mm {req.strip_width_mm:g} mm)",
+                column="texture.crop_y_mm",
+                got=req.crop_y_mm,
+            )
+        )
     if not 0 <= req.min_valid_share <= 1:
-        out.append(ConfigProblem(src, "a share between 0 and 1", column="ingest.min_valid_share",
-                                 got=req.min_valid_share))
+        out.append(
+            ConfigProblem(src, "a share between 0 and 1", column="ingest.min_valid_share", got=req.min_valid_share)
+        )
     return out
 
 
@@ -182,8 +282,7 @@ def check_table(directory, req: Requirements = Requirements(), points: bool = Tr
     problems: list[InputError] = []
     camp = None
     try:
-        camp = load_campaign(directory, speeds_kmh=req.speeds_kmh, check_scans=False,
-                             allow_outside=req.allow_outside)
+        camp = load_campaign(directory, speeds_kmh=req.speeds_kmh, check_scans=False, allow_outside=req.allow_outside)
     except CampaignError as err:
         problems.extend(getattr(err, "errors", None) or [err])
     if camp is not None:
@@ -193,12 +292,22 @@ def check_table(directory, req: Requirements = Requirements(), points: bool = Tr
                 try:
                     tr.smooth_at(req.speeds_kmh, req.smooth_window_kmh)
                 except DftError as exc:
-                    problems.append(CampaignError(sites_csv, "a DFT trace with samples near every speed",
-                                                  row=camp.rows[site], column="dft", got=_rel(directory, tr.path),
-                                                  hint=str(exc)))
+                    problems.append(
+                        CampaignError(
+                            sites_csv,
+                            "a DFT trace with samples near every speed",
+                            row=camp.rows[site],
+                            column="dft",
+                            got=_rel(directory, tr.path),
+                            hint=str(exc),
+                        )
+                    )
         if req.mesh_study_site is not None and req.mesh_study_site not in camp.site_ids:
-            problems.append(ConfigProblem(req.source, f"a site id of {sites_csv}", column="mesh_study.site",
-                                          got=req.mesh_study_site))
+            problems.append(
+                ConfigProblem(
+                    req.source, f"a site id of {sites_csv}", column="mesh_study.site", got=req.mesh_study_site
+                )
+            )
     return camp, problems
 
 
@@ -226,8 +335,7 @@ def _x3p_extras(path: Path, full: bool) -> dict:
         if full and link is not None:
             v_link, v_md5 = link.find("ValidPointsLink"), link.find("MD5ChecksumValidPoints")
             if v_link is not None and v_md5 is not None and (v_md5.text or "").strip():
-                out["valid_md5"] = (v_md5.text.strip().lower(),
-                                    hashlib.md5(zf.read(v_link.text.strip())).hexdigest())
+                out["valid_md5"] = (v_md5.text.strip().lower(), hashlib.md5(zf.read(v_link.text.strip())).hexdigest())
     return out
 
 
@@ -237,8 +345,13 @@ def _one_line(exc: InputError) -> InputError:
     if not (isinstance(exc.got, str) and "\n" in exc.got.strip()):
         return exc
     first = str(exc.got).strip().splitlines()[0].rstrip(": ") if exc.got is not None else None
-    short = InputError(exc.file, exc.expected, row=exc.row, column=exc.column,
-                       got=None if first is None else f"{first} ... (first line of the reader's message)")
+    short = InputError(
+        exc.file,
+        exc.expected,
+        row=exc.row,
+        column=exc.column,
+        got=None if first is None else f"{first} ... (first line of the reader's message)",
+    )
     short.__cause__ = exc
     return short
 
@@ -252,25 +365,56 @@ def check_geometry(path, shape, dx_mm: float, dy_mm: float, req: Requirements) -
     max_spacing = min(lo / 2.0, req.resolution_mm)
     for name, d in (("dx", dx_mm), ("dy", dy_mm)):
         if not d <= max_spacing * (1 + 1e-9):
-            out.append(InputError(path, f"a lateral spacing <= {max_spacing:g} mm (2 points per {lo:g} mm, the "
-                                  f"lower limit of texture.macro_mm, and no coarser than mesh.resolution_mm "
-                                  f"{req.resolution_mm:g} mm)", column=f"{name}_mm", got=f"{d:g} mm"))
+            out.append(
+                InputError(
+                    path,
+                    f"a lateral spacing <= {max_spacing:g} mm (2 points per {lo:g} mm, the "
+                    f"lower limit of texture.macro_mm, and no coarser than mesh.resolution_mm "
+                    f"{req.resolution_mm:g} mm)",
+                    column=f"{name}_mm",
+                    got=f"{d:g} mm",
+                )
+            )
     x0 = req.strip_x0_mm if req.strip_x0_mm is not None else 0.0
     y0 = req.strip_y0_mm if req.strip_y0_mm is not None else 0.0
     if x0 + req.strip_length_mm > length * (1 + 1e-9) or x0 < 0:
-        out.append(InputError(path, f"a scan length (x, first to last of {cols} points at {dx_mm:g} mm) holding the FE strip "
-                              f"(mesh.length_mm {req.strip_length_mm:g} mm from x0 {x0:g} mm)", column="extent_x",
-                              got=f"{length:g} mm"))
+        out.append(
+            InputError(
+                path,
+                f"a scan length (x, first to last of {cols} points at {dx_mm:g} mm) holding the FE strip "
+                f"(mesh.length_mm {req.strip_length_mm:g} mm from x0 {x0:g} mm)",
+                column="extent_x",
+                got=f"{length:g} mm",
+            )
+        )
     if y0 + req.strip_width_mm > width * (1 + 1e-9) or y0 < 0:
-        out.append(InputError(path, f"a scan width (y, first to last of {rows} points at {dy_mm:g} mm) holding the FE strip "
-                              f"(mesh.width_mm {req.strip_width_mm:g} mm from y0 {y0:g} mm)", column="extent_y",
-                              got=f"{width:g} mm"))
+        out.append(
+            InputError(
+                path,
+                f"a scan width (y, first to last of {rows} points at {dy_mm:g} mm) holding the FE strip "
+                f"(mesh.width_mm {req.strip_width_mm:g} mm from y0 {y0:g} mm)",
+                column="extent_y",
+                got=f"{width:g} mm",
+            )
+        )
     if req.crop_y_mm is not None and req.crop_y_mm > width * (1 + 1e-9):
-        out.append(InputError(path, f"a scan width of at least texture.crop_y_mm {req.crop_y_mm:g} mm",
-                              column="extent_y", got=f"{width:g} mm"))
+        out.append(
+            InputError(
+                path,
+                f"a scan width of at least texture.crop_y_mm {req.crop_y_mm:g} mm",
+                column="extent_y",
+                got=f"{width:g} mm",
+            )
+        )
     if hi > length * (1 + 1e-9):
-        out.append(InputError(path, f"a scan length of at least the upper limit of texture.macro_mm ({hi:g} mm)",
-                              column="extent_x", got=f"{length:g} mm"))
+        out.append(
+            InputError(
+                path,
+                f"a scan length of at least the upper limit of texture.macro_mm ({hi:g} mm)",
+                column="extent_x",
+                got=f"{length:g} mm",
+            )
+        )
     return out
 
 
@@ -286,16 +430,28 @@ def check_scan(path, req: Requirements = Requirements(), level: str = "full") ->
             hdr = read_x3p_header(path)
             extras = _x3p_extras(path, full=level == "full")
             if hdr.dtype in ("I", "L") and extras["cz_increment"] is None:
-                return [InputError(path, f"a CZ Increment (metres per code) for integer height codes (type "
-                                   f"{hdr.dtype})", column="Record1/Axes/CZ/Increment", got="missing",
-                                   hint="heights would read as raw codes in metres")]
+                return [
+                    InputError(
+                        path,
+                        f"a CZ Increment (metres per code) for integer height codes (type {hdr.dtype})",
+                        column="Record1/Axes/CZ/Increment",
+                        got="missing",
+                        hint="heights would read as raw codes in metres",
+                    )
+                ]
             problems = check_geometry(path, hdr.shape, hdr.dx_mm, hdr.dy_mm, req)
             if level != "full":
                 return problems
             if "valid_md5" in extras and extras["valid_md5"][0] != extras["valid_md5"][1]:
-                problems.append(InputError(path, f"bindata/valid.bin with the MD5 stated in main.xml "
-                                           f"({extras['valid_md5'][0]})", column="Record3/DataLink/MD5ChecksumValidPoints",
-                                           got=extras["valid_md5"][1], hint="corrupt valid-point mask"))
+                problems.append(
+                    InputError(
+                        path,
+                        f"bindata/valid.bin with the MD5 stated in main.xml ({extras['valid_md5'][0]})",
+                        column="Record3/DataLink/MD5ChecksumValidPoints",
+                        got=extras["valid_md5"][1],
+                        hint="corrupt valid-point mask",
+                    )
+                )
         else:
             problems = []
         surface = read_scan(path)  # decodes, checks MD5 of data.bin
@@ -309,14 +465,26 @@ def check_scan(path, req: Requirements = Requirements(), level: str = "full") ->
     valid = np.isfinite(h)
     share = float(valid.mean()) if h.size else 0.0
     if share < req.min_valid_share:
-        problems.append(InputError(path, f"at least {req.min_valid_share:.0%} valid points "
-                                   "(ingest.min_valid_share)", column="heights", got=f"{share:.1%} valid"))
+        problems.append(
+            InputError(
+                path,
+                f"at least {req.min_valid_share:.0%} valid points (ingest.min_valid_share)",
+                column="heights",
+                got=f"{share:.1%} valid",
+            )
+        )
     elif valid.any():
         span = float(h[valid].max() - h[valid].min())
         if span > req.max_height_span_mm:
-            problems.append(InputError(path, f"valid heights spanning at most {req.max_height_span_mm:g} mm "
-                                       "(ingest.max_height_span_mm; more means a wrong unit or Z increment)",
-                                       column="heights", got=f"{span:.4g} mm"))
+            problems.append(
+                InputError(
+                    path,
+                    f"valid heights spanning at most {req.max_height_span_mm:g} mm "
+                    "(ingest.max_height_span_mm; more means a wrong unit or Z increment)",
+                    column="heights",
+                    got=f"{span:.4g} mm",
+                )
+            )
     return problems
 
 
@@ -374,8 +542,12 @@ def summary_error(directory, found: list[InputError]) -> InputError:
         err.errors = list(found)
         return err
     sites_csv = Path(directory).expanduser().absolute() / SITES_FILE
-    err = CampaignError(sites_csv, "a campaign without problems", got=f"{len(found)} problem(s)",
-                        hint="all listed below; fix them and run again")
+    err = CampaignError(
+        sites_csv,
+        "a campaign without problems",
+        got=f"{len(found)} problem(s)",
+        hint="all listed below; fix them and run again",
+    )
     err.args = (str(err) + "\n" + "\n".join(f"  - {e}" for e in found),)
     err.errors = list(found)
     return err

@@ -31,14 +31,14 @@ from __future__ import annotations
 import hashlib
 import zipfile
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from decimal import Decimal
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 
-from skidsim.runlog import atomic_path
+from skidsim.atomic import atomic_path
 from skidsim.errors import ScanFormatError
 from skidsim.surface import Surface
 
@@ -52,9 +52,18 @@ DATA_BIN = "bindata/data.bin"
 VALID_BIN = "bindata/valid.bin"
 CHECKSUM_FILE = "md5checksum.hex"
 PROBING_TYPES = ("Contacting", "NonContacting", "Software")
-RECORD2_KEYS = ("Date", "Creator", "InstrumentManufacturer", "InstrumentModel", "InstrumentSerial",
-                "InstrumentVersion", "CalibrationDate", "ProbingSystemType", "ProbingSystemIdentification",
-                "Comment")
+RECORD2_KEYS = (
+    "Date",
+    "Creator",
+    "InstrumentManufacturer",
+    "InstrumentModel",
+    "InstrumentSerial",
+    "InstrumentVersion",
+    "CalibrationDate",
+    "ProbingSystemType",
+    "ProbingSystemIdentification",
+    "Comment",
+)
 """Keys of ``Surface.meta`` / ``meta`` that map to Record2 (flattened element names)."""
 
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed zip entry time: identical inputs give identical bytes
@@ -199,8 +208,13 @@ def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
             raise _err(path, f"element Record1/Axes/{name} in main.xml")
         axis_type = _text(ax, "AxisType", path, what=f"{name}/AxisType")
         if axis_type != "I":
-            raise _err(path, "AxisType I (incremental, a regular grid)", got=axis_type,
-                       column=f"Record1/Axes/{name}/AxisType", hint="absolute lateral axes are not supported")
+            raise _err(
+                path,
+                "AxisType I (incremental, a regular grid)",
+                got=axis_type,
+                column=f"Record1/Axes/{name}/AxisType",
+                hint="absolute lateral axes are not supported",
+            )
         inc = _m_to_mm(_text(ax, "Increment", path, what=f"{name}/Increment"), path, f"{name}/Increment")
         if not (np.isfinite(inc) and inc > 0):
             raise _err(path, "a positive increment", got=inc, column=f"Record1/Axes/{name}/Increment")
@@ -214,8 +228,12 @@ def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
         raise _err(path, "AxisType A (absolute) for CZ", got=z_type, column="Record1/Axes/CZ/AxisType")
     dtype = _text(cz, "DataType", path, what="CZ/DataType")
     if dtype not in DTYPES:
-        raise _err(path, "DataType one of I (int16), L (int32), F (float32), D (float64)", got=dtype,
-                   column="Record1/Axes/CZ/DataType")
+        raise _err(
+            path,
+            "DataType one of I (int16), L (int32), F (float32), D (float64)",
+            got=dtype,
+            column="Record1/Axes/CZ/DataType",
+        )
     z_inc_text = _text(cz, "Increment", path, required=False)
     z_off_text = _text(cz, "Offset", path, required=False)
     z_inc = 1000.0 if z_inc_text is None else _m_to_mm(z_inc_text, path, "CZ/Increment")
@@ -255,9 +273,13 @@ def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
         size = zf.getinfo(point_link).file_size
         expected = n * DTYPES[dtype].itemsize
         if size != expected:
-            raise _err(path, f"{point_link} of {expected} bytes (SizeX {sizes[0]} x SizeY {sizes[1]} x "
-                       f"{DTYPES[dtype].itemsize} bytes of type {dtype})", got=f"{size} bytes",
-                       hint="truncated or mismatched data")
+            raise _err(
+                path,
+                f"{point_link} of {expected} bytes (SizeX {sizes[0]} x SizeY {sizes[1]} x "
+                f"{DTYPES[dtype].itemsize} bytes of type {dtype})",
+                got=f"{size} bytes",
+                hint="truncated or mismatched data",
+            )
     if valid_link is not None:
         if valid_link not in names:
             raise _err(path, f"valid points member {valid_link}", got="missing from the archive")
@@ -265,11 +287,22 @@ def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
         if size != (n + 7) // 8:
             raise _err(path, f"{valid_link} of {(n + 7) // 8} bytes (one bit per point)", got=f"{size} bytes")
     record2 = root.find("Record2")
-    return X3PHeader(path=str(path), size_x=sizes[0], size_y=sizes[1], dtype=dtype,
-                     dx_mm=lateral["CX"][0], dy_mm=lateral["CY"][0], z_increment_mm=z_inc, z_offset_mm=z_off,
-                     x_offset_mm=lateral["CX"][1], y_offset_mm=lateral["CY"][1], point_data_link=point_link,
-                     valid_points_link=valid_link, point_data_md5=data_md5,
-                     record2={} if record2 is None else _flatten(record2))
+    return X3PHeader(
+        path=str(path),
+        size_x=sizes[0],
+        size_y=sizes[1],
+        dtype=dtype,
+        dx_mm=lateral["CX"][0],
+        dy_mm=lateral["CY"][0],
+        z_increment_mm=z_inc,
+        z_offset_mm=z_off,
+        x_offset_mm=lateral["CX"][1],
+        y_offset_mm=lateral["CY"][1],
+        point_data_link=point_link,
+        valid_points_link=valid_link,
+        point_data_md5=data_md5,
+        record2={} if record2 is None else _flatten(record2),
+    )
 
 
 def read_x3p_header(path) -> X3PHeader:
@@ -304,9 +337,13 @@ def read_x3p(path) -> Surface:
             if hdr.point_data_md5 is not None:
                 actual = hashlib.md5(raw_bytes).hexdigest()
                 if actual != hdr.point_data_md5.lower():
-                    raise _err(path, f"{hdr.point_data_link} with the MD5 stated in main.xml "
-                               f"({hdr.point_data_md5.lower()})", got=actual,
-                               column="Record3/DataLink/MD5ChecksumPointData", hint="corrupt point data")
+                    raise _err(
+                        path,
+                        f"{hdr.point_data_link} with the MD5 stated in main.xml ({hdr.point_data_md5.lower()})",
+                        got=actual,
+                        column="Record3/DataLink/MD5ChecksumPointData",
+                        hint="corrupt point data",
+                    )
             raw = np.frombuffer(raw_bytes, dtype=dt)
         else:
             raw = _read_datalist(zf, path, n)
@@ -325,8 +362,13 @@ def read_x3p(path) -> Surface:
     if valid is not None:
         heights[~valid] = np.nan
     meta = dict(hdr.record2)
-    meta.update(x3p_dtype=hdr.dtype, z_increment_mm=hdr.z_increment_mm, z_offset_mm=hdr.z_offset_mm,
-                x0_mm=hdr.x_offset_mm, y0_mm=hdr.y_offset_mm)
+    meta.update(
+        x3p_dtype=hdr.dtype,
+        z_increment_mm=hdr.z_increment_mm,
+        z_offset_mm=hdr.z_offset_mm,
+        x0_mm=hdr.x_offset_mm,
+        y0_mm=hdr.y_offset_mm,
+    )
     return Surface(heights.reshape(hdr.size_y, hdr.size_x), dx=hdr.dx_mm, dy=hdr.dy_mm, name=path.stem, meta=meta)
 
 
@@ -354,8 +396,14 @@ def _sub(parent, tag, text=None):
 
 
 def _main_xml(hdr: dict, record2: dict) -> bytes:
-    root = ElementTree.Element("p:ISO5436_2", {"xmlns:p": NAMESPACE, "xmlns:xsi": XSI_NAMESPACE,
-                                               "xsi:schemaLocation": f"{NAMESPACE} {NAMESPACE}/ISO5436_2_XML.xsd"})
+    root = ElementTree.Element(
+        "p:ISO5436_2",
+        {
+            "xmlns:p": NAMESPACE,
+            "xmlns:xsi": XSI_NAMESPACE,
+            "xsi:schemaLocation": f"{NAMESPACE} {NAMESPACE}/ISO5436_2_XML.xsd",
+        },
+    )
     r1 = _sub(root, "Record1")
     _sub(r1, "Revision", "ISO5436 - 2000")
     _sub(r1, "FeatureType", "SUR")
@@ -432,20 +480,21 @@ def _quantise(h_mm: np.ndarray, valid: np.ndarray, dtype: str, z_increment_mm, p
     np.rint(codes, out=codes)
     codes[~valid] = 0
     if hv.size and (codes.min() < info.min or codes.max() > info.max):
-        raise ValueError(f"{path}: heights {hmin:g}..{hmax:g} mm do not fit type {dtype} with increment "
-                         f"{inc_mm:g} mm; use a larger z_increment_mm or dtype 'L'/'D'")
+        raise ValueError(
+            f"{path}: heights {hmin:g}..{hmax:g} mm do not fit type {dtype} with increment "
+            f"{inc_mm:g} mm; use a larger z_increment_mm or dtype 'L'/'D'"
+        )
     return codes.astype(DTYPES[dtype]), inc_text, off_text
 
 
-def atomic_write_bytes(path, writer) -> None:
-    """Call ``writer(fileobj)`` on a temporary file next to ``path`` and rename it to ``path`` at the end."""
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            writer(fh)
-
-
-def write_x3p(path, surface: Surface, dtype: str = "D", z_increment_mm: float | None = None,
-              meta: dict | None = None, compresslevel: int | None = None) -> None:
+def write_x3p(
+    path,
+    surface: Surface,
+    dtype: str = "D",
+    z_increment_mm: float | None = None,
+    meta: dict | None = None,
+    compresslevel: int | None = None,
+) -> None:
     """Write ``surface`` (heights mm) as an ISO 25178-72 X3P file (metres inside), atomically.
 
     Parameters
@@ -481,15 +530,24 @@ def write_x3p(path, surface: Surface, dtype: str = "D", z_increment_mm: float | 
         valid_bytes = np.packbits(valid.ravel(), bitorder="little").tobytes()
     data_bytes = data.tobytes()
     record2 = {k: str(v) for k, v in {**(surface.meta or {}), **(meta or {})}.items() if k in RECORD2_KEYS}
-    record2.setdefault("Date", datetime.now(timezone.utc).replace(microsecond=0).isoformat())
+    record2.setdefault("Date", datetime.now(UTC).replace(microsecond=0).isoformat())
     if record2.get("ProbingSystemType", "Software") not in PROBING_TYPES:
-        raise ValueError(f"{path}: meta ProbingSystemType must be one of {PROBING_TYPES}, "
-                         f"got {record2['ProbingSystemType']!r}")
-    hdr = dict(nx=h.shape[1], ny=h.shape[0], dx_mm=surface.dx, dy_mm=surface.dy, dtype=dtype,
-               x0_mm=float((surface.meta or {}).get("x0_mm", 0.0)),
-               y0_mm=float((surface.meta or {}).get("y0_mm", 0.0)),
-               z_inc_text=z_inc_text, z_off_text=z_off_text, data_md5=hashlib.md5(data_bytes).hexdigest(),
-               valid_md5=None if valid_bytes is None else hashlib.md5(valid_bytes).hexdigest())
+        raise ValueError(
+            f"{path}: meta ProbingSystemType must be one of {PROBING_TYPES}, got {record2['ProbingSystemType']!r}"
+        )
+    hdr = dict(
+        nx=h.shape[1],
+        ny=h.shape[0],
+        dx_mm=surface.dx,
+        dy_mm=surface.dy,
+        dtype=dtype,
+        x0_mm=float((surface.meta or {}).get("x0_mm", 0.0)),
+        y0_mm=float((surface.meta or {}).get("y0_mm", 0.0)),
+        z_inc_text=z_inc_text,
+        z_off_text=z_off_text,
+        data_md5=hashlib.md5(data_bytes).hexdigest(),
+        valid_md5=None if valid_bytes is None else hashlib.md5(valid_bytes).hexdigest(),
+    )
     xml = _main_xml(hdr, record2)
     members = [(MAIN_XML, xml), (DATA_BIN, data_bytes)]
     if valid_bytes is not None:
@@ -507,4 +565,5 @@ def write_x3p(path, surface: Surface, dtype: str = "D", z_increment_mm: float | 
                     info.compress_type = zipfile.ZIP_DEFLATED
                     zf.writestr(info, payload, compresslevel=compresslevel)
 
-    atomic_write_bytes(path, _write)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        _write(fh)

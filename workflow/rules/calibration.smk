@@ -13,11 +13,6 @@ rule calibrate:
     output:
         result=f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json",
         history=f"{RESULTS}/sites/{{site}}/calibration_{{method}}_history.parquet",
-    params:
-        calibration=config["calibration"],
-        solver=config["solver"],
-        speeds=config["speeds"]["calibration_kmh"],
-        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     log:
         "logs/calibrate/{site}_{method}.log",
     benchmark:
@@ -26,6 +21,11 @@ rule calibrate:
     resources:
         mem_mb=1500,
         runtime=120,
+    params:
+        calibration=config["calibration"],
+        solver=config["solver"],
+        speeds=config["speeds"]["calibration_kmh"],
+        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     script:
         "../scripts/calibrate.py"
 
@@ -38,12 +38,6 @@ rule validate_speeds:
         calibrations=expand(f"{RESULTS}/sites/{{{{site}}}}/calibration_{{method}}.json", method=METHODS),
     output:
         table=f"{RESULTS}/sites/{{site}}/validation.parquet",
-    params:
-        solver=config["solver"],
-        methods=METHODS,
-        calibration_speeds=config["speeds"]["calibration_kmh"],
-        validation_speeds=config["speeds"]["validation_kmh"],
-        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     log:
         "logs/validate_speeds/{site}.log",
     benchmark:
@@ -52,6 +46,12 @@ rule validate_speeds:
     resources:
         mem_mb=1500,
         runtime=60,
+    params:
+        solver=config["solver"],
+        methods=METHODS,
+        calibration_speeds=config["speeds"]["calibration_kmh"],
+        validation_speeds=config["speeds"]["validation_kmh"],
+        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     script:
         "../scripts/validate_speeds.py"
 
@@ -59,23 +59,23 @@ rule validate_speeds:
 rule calibration_identifiability:
     """Quality and identifiability of one site's calibration: fit vs the trace's noise, flags with reasons
     (not_converged, at_bound, outside_law, fe_not_smooth, fit_beyond_noise), standard errors, profile-likelihood
-    intervals and the identified combinations (skidsim.identifiability; no FE runs)."""
+    intervals and the identified combinations (skidsim.calibration.identifiability; no FE runs)."""
     input:
         calibration=f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json",
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
         validation=f"{RESULTS}/sites/{{site}}/validation.parquet",
     output:
         record=f"{RESULTS}/sites/{{site}}/identifiability_{{method}}.json",
-    params:
-        options=config["calibration"].get("identifiability", {}),
-        calibration_speeds=config["speeds"]["calibration_kmh"],
-        validation_speeds=config["speeds"]["validation_kmh"],
     log:
         "logs/calibration_identifiability/{site}_{method}.log",
     threads: 1
     resources:
         mem_mb=500,
         runtime=5,
+    params:
+        options=config["calibration"].get("identifiability", {}),
+        calibration_speeds=config["speeds"]["calibration_kmh"],
+        validation_speeds=config["speeds"]["validation_kmh"],
     script:
         "../scripts/calibration_identifiability.py"
 
@@ -89,32 +89,44 @@ rule calibration_summary:
         validations=expand(f"{RESULTS}/sites/{{site}}/validation.parquet", site=SITES),
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
         ifi=f"{RESULTS}/ifi/ifi.csv",  # the PIARC/IFI speed model beside the FE laws (rule ifi in ifi.smk)
-        identifiability=expand(f"{RESULTS}/sites/{{site}}/identifiability_{{method}}.json", site=SITES,
-                               method=METHODS),
+        identifiability=expand(f"{RESULTS}/sites/{{site}}/identifiability_{{method}}.json", site=SITES, method=METHODS),
     output:
-        table2=report(f"{RESULTS}/calibration/table2.csv", caption="../report/table2.csv.rst",
-                      category="3 Back-calculation"),
-        comparison=report(f"{RESULTS}/calibration/comparison.csv", caption="../report/comparison.rst",
-                          category="3 Back-calculation"),
-        stats=report(f"{RESULTS}/calibration/fit_statistics.csv", caption="../report/fit_statistics.rst",
-                     category="3 Back-calculation"),
+        table2=report(
+            f"{RESULTS}/calibration/table2.csv", caption="../report/table2.csv.rst", category="3 Back-calculation"
+        ),
+        comparison=report(
+            f"{RESULTS}/calibration/comparison.csv", caption="../report/comparison.rst", category="3 Back-calculation"
+        ),
+        stats=report(
+            f"{RESULTS}/calibration/fit_statistics.csv",
+            caption="../report/fit_statistics.rst",
+            category="3 Back-calculation",
+        ),
         validation=f"{RESULTS}/calibration/validation.parquet",
         params=f"{RESULTS}/calibration/parameters.parquet",
-        figure10=report(f"{RESULTS}/calibration/figure10.png", caption="../report/figure10.rst",
-                        category="3 Back-calculation"),
-        curves=report(f"{RESULTS}/calibration/curves.png", caption="../report/curves.rst",
-                      category="3 Back-calculation"),
-        identifiability=report(f"{RESULTS}/calibration/identifiability.csv",
-                               caption="../report/identifiability.rst", category="3 Back-calculation"),
-        identifiability_figure=report(f"{RESULTS}/calibration/identifiability.png",
-                                      caption="../report/identifiability_figure.rst", category="3 Back-calculation"),
-    params:
-        methods=METHODS,
+        figure10=report(
+            f"{RESULTS}/calibration/figure10.png", caption="../report/figure10.rst", category="3 Back-calculation"
+        ),
+        curves=report(
+            f"{RESULTS}/calibration/curves.png", caption="../report/curves.rst", category="3 Back-calculation"
+        ),
+        identifiability=report(
+            f"{RESULTS}/calibration/identifiability.csv",
+            caption="../report/identifiability.rst",
+            category="3 Back-calculation",
+        ),
+        identifiability_figure=report(
+            f"{RESULTS}/calibration/identifiability.png",
+            caption="../report/identifiability_figure.rst",
+            category="3 Back-calculation",
+        ),
     log:
         "logs/calibration_summary.log",
     threads: 1
     resources:
         mem_mb=1000,
         runtime=5,
+    params:
+        methods=METHODS,
     script:
         "../scripts/calibration_summary.py"

@@ -28,11 +28,11 @@ rule synth_table:
         sites=f"{RESULTS}/campaign/sites.csv",
     log:
         "logs/synth_table.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=500,
         runtime=5,
-    localrule: True
     script:
         "../scripts/synth_table.py"
 
@@ -45,11 +45,11 @@ rule synth_truth:
         truth=f"{RESULTS}/truth/campaign.json",
     log:
         "logs/synth_truth.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=500,
         runtime=5,
-    localrule: True
     script:
         "../scripts/synth_truth.py"
 
@@ -62,16 +62,16 @@ rule validate_campaign:
         sites=INGEST,
         dft=f"{RESULTS}/ingest/dft_points.parquet",
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
-    params:
-        campaign=str(CAMPAIGN_DIR),
-        speeds=sorted(set(config["speeds"]["calibration_kmh"]) | set(config["speeds"]["validation_kmh"])),
-        check_scans=config["ingest"]["check_scans"],
-        smooth_window_kmh=config["ingest"]["dft_smooth_window_kmh"],
     log:
         "logs/validate_campaign.log",
     threads: 1
     resources:
         mem_mb=1500,
         runtime=15,
+    params:
+        campaign=str(CAMPAIGN_DIR),
+        speeds=sorted(set(config["speeds"]["calibration_kmh"]) | set(config["speeds"]["validation_kmh"])),
+        check_scans=config["ingest"]["check_scans"],
+        smooth_window_kmh=config["ingest"]["dft_smooth_window_kmh"],
     script:
         "../scripts/validate_campaign.py"

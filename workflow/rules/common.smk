@@ -10,7 +10,7 @@ sys.path.insert(0, str(Path(workflow.basedir) / "src"))  # the library, also wit
 
 validate(config, schema="../schemas/config.schema.yaml")
 
-from skidsim.workflow_support import plan_check, site_table  # noqa: E402
+from skidsim.config import plan_check, site_table  # noqa: E402
 
 RESULTS = "results"
 SYNTHETIC = not config.get("campaign")
@@ -88,8 +88,11 @@ INGEST = f"{RESULTS}/ingest/sites.parquet"
 # (skidsim.calibration.surrogate_prior, docs/calibration.md).
 from skidsim.calibration import prior_reference_sites  # noqa: E402
 
-PRIOR_SITES = (prior_reference_sites(SITES, int(config["calibration"]["ours"].get("prior_sites", 3)))
-               if config["calibration"]["ours"].get("model", "slip") == "slip" else [])
+PRIOR_SITES = (
+    prior_reference_sites(SITES, int(config["calibration"]["ours"].get("prior_sites", 3)))
+    if config["calibration"]["ours"].get("model", "slip") == "slip"
+    else []
+)
 
 
 def calibration_prior_of(wildcards):

@@ -25,16 +25,16 @@ checkpoint diagnosis:
             caption="../report/diagnosis.rst",
             category="5 Model criticism",
         ),
-    params:
-        cfg=config["diagnosis"],
-        calibration_method=config["regression"]["calibration_method"],
-        calibration_speeds=config["speeds"]["calibration_kmh"],
-        validation_speeds=config["speeds"]["validation_kmh"],
     log:
         "logs/diagnosis.log",
     threads: 1
     resources:
         mem_mb=2000,
         runtime=30,
+    params:
+        cfg=config["diagnosis"],
+        calibration_method=config["regression"]["calibration_method"],
+        calibration_speeds=config["speeds"]["calibration_kmh"],
+        validation_speeds=config["speeds"]["validation_kmh"],
     script:
         "../scripts/diagnosis.py"

@@ -5,7 +5,7 @@
 import json
 from types import SimpleNamespace
 
-from skidsim.fe_extension import fe_extension_decision, viscoelastic_solver_cfg
+from skidsim.criticism.fe_extension import fe_extension_decision, viscoelastic_solver_cfg
 
 FE_MODE = config["diagnosis"].get("fe_extension", "auto")
 FE_SOLVER = viscoelastic_solver_cfg(config["solver"], config["diagnosis"].get("viscoelastic"))
@@ -28,12 +28,6 @@ rule fe_recalibrate:
         result=f"{RESULTS}/sites/{{site}}/fe_extension/calibration_ours.json",
         history=f"{RESULTS}/sites/{{site}}/fe_extension/calibration_ours_history.parquet",
         validation=f"{RESULTS}/sites/{{site}}/fe_extension/validation.parquet",
-    params:
-        calibration=config["calibration"],
-        solver=FE_SOLVER,
-        calibration_speeds=config["speeds"]["calibration_kmh"],
-        validation_speeds=config["speeds"]["validation_kmh"],
-        cache=f"{RESULTS}/cache/{{site}}/fe_viscoelastic.parquet",
     log:
         "logs/fe_recalibrate/{site}.log",
     benchmark:
@@ -42,6 +36,12 @@ rule fe_recalibrate:
     resources:
         mem_mb=1500,
         runtime=240,
+    params:
+        calibration=config["calibration"],
+        solver=FE_SOLVER,
+        calibration_speeds=config["speeds"]["calibration_kmh"],
+        validation_speeds=config["speeds"]["validation_kmh"],
+        cache=f"{RESULTS}/cache/{{site}}/fe_viscoelastic.parquet",
     script:
         "../scripts/fe_recalibrate.py"
 
@@ -70,6 +70,12 @@ rule fe_gain:
         unpack(fe_gain_inputs),
     output:
         gain=f"{DIAG}/fe_gain.json",
+    log:
+        "logs/fe_gain.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
     params:
         mode=FE_MODE,
         sites=SITES,
@@ -78,11 +84,5 @@ rule fe_gain:
         n_boot=config["diagnosis"]["n_boot"],
         ci=config["diagnosis"]["ci"],
         seed=config["diagnosis"]["seed"],
-    log:
-        "logs/fe_gain.log",
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=5,
     script:
         "../scripts/fe_gain.py"

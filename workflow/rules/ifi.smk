@@ -10,14 +10,14 @@ rule ifi:
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
     output:
         ifi=report(f"{RESULTS}/ifi/ifi.csv", caption="../report/ifi.rst", category="3 Back-calculation"),
-    params:
-        smooth_window_kmh=config["ingest"]["dft_smooth_window_kmh"],
     log:
         "logs/ifi.log",
     threads: 1
     resources:
         mem_mb=1000,
         runtime=5,
+    params:
+        smooth_window_kmh=config["ingest"]["dft_smooth_window_kmh"],
     script:
         "../scripts/ifi.py"
 
@@ -28,18 +28,18 @@ rule ifi_validation:
         ifi=rules.ifi.output.ifi,
         validation=f"{RESULTS}/calibration/validation.parquet",
     output:
-        table=report(f"{RESULTS}/ifi/validation.csv", caption="../report/ifi_validation.rst",
-                     category="3 Back-calculation"),
+        table=report(
+            f"{RESULTS}/ifi/validation.csv", caption="../report/ifi_validation.rst", category="3 Back-calculation"
+        ),
         rows=f"{RESULTS}/ifi/validation_rows.parquet",
-        figure=report(f"{RESULTS}/ifi/ifi_vs_fe.png", caption="../report/ifi_figure.rst",
-                      category="3 Back-calculation"),
-    params:
-        validation_speeds=config["speeds"]["validation_kmh"],
+        figure=report(f"{RESULTS}/ifi/ifi_vs_fe.png", caption="../report/ifi_figure.rst", category="3 Back-calculation"),
     log:
         "logs/ifi_validation.log",
     threads: 1
     resources:
         mem_mb=1000,
         runtime=5,
+    params:
+        validation_speeds=config["speeds"]["validation_kmh"],
     script:
         "../scripts/ifi_validation.py"

@@ -14,24 +14,9 @@ rule reconstruct:
         inp_static=f"{RESULTS}/sites/{{site}}/dft_static_calculix.inp",
         inp_dynamic=f"{RESULTS}/sites/{{site}}/dft_dynamic_calculix.inp",
         inp_abaqus=f"{RESULTS}/sites/{{site}}/dft_dynamic_abaqus.inp",
-        reconstruction=report(
-            f"{RESULTS}/sites/{{site}}/reconstruction.png",
-            caption="../report/reconstruction.rst",
-            category="1 Texture",
-            subcategory="Figure 7 c-d per site",
-            labels={"site": "{site}", "figure": "reconstruction"},
-        ),
-        figure=report(
-            f"{RESULTS}/sites/{{site}}/fe_model.png",
-            caption="../report/fe_model.rst",
-            category="1 Texture",
-            subcategory="Figure 7 c-d per site",
-            labels={"site": "{site}", "figure": "FE model"},
-        ),
-    params:
-        mesh=config["mesh"],
-        solver=config["solver"],
-        friction_start=config["calibration"]["study"]["start"],
+        # the two figures are in the report as reduced copies (rule report_gallery, workflow/rules/report.smk)
+        reconstruction=f"{RESULTS}/sites/{{site}}/reconstruction.png",
+        figure=f"{RESULTS}/sites/{{site}}/fe_model.png",
     log:
         "logs/reconstruct/{site}.log",
     benchmark:
@@ -40,5 +25,9 @@ rule reconstruct:
     resources:
         mem_mb=2000,
         runtime=10,
+    params:
+        mesh=config["mesh"],
+        solver=config["solver"],
+        friction_start=config["calibration"]["study"]["start"],
     script:
         "../scripts/reconstruct.py"

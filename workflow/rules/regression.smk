@@ -1,6 +1,6 @@
 # Texture -> friction regression (the study's PCA regression, Tables 5-6), honest cross-validated alternatives, and
 # FE predictions for the held-out sites (Figure 11). The 27/9 split is seeded, so it is known at parse time.
-from skidsim.workflow_support import regression_split
+from skidsim.config import regression_split
 
 TRAIN_SITES, TEST_SITES = regression_split(config["regression"], SITE_TABLE)
 REG = f"{RESULTS}/regression"
@@ -18,24 +18,21 @@ rule regression:
     output:
         split=f"{REG}/split.csv",
         table5=report(f"{REG}/table5.csv", caption="../report/table5.rst", category="4 Regression"),
-        table5_statistics=report(f"{REG}/table5_statistics.csv", caption="../report/table5.rst",
-                                 category="4 Regression"),
+        table5_statistics=report(
+            f"{REG}/table5_statistics.csv", caption="../report/table5.rst", category="4 Regression"
+        ),
         table6=report(f"{REG}/table6.csv", caption="../report/table6.rst", category="4 Regression"),
         cv_table=report(f"{REG}/cv_table.csv", caption="../report/cv.rst", category="4 Regression"),
         cv_ranking=report(f"{REG}/cv_ranking.csv", caption="../report/cv.rst", category="4 Regression"),
-        skill=report(f"{REG}/prediction_skill.csv", caption="../report/prediction_skill.rst",
-                     category="4 Regression"),
-        skill_figure=report(f"{REG}/prediction_skill.png", caption="../report/prediction_skill.rst",
-                            category="4 Regression"),
+        skill=report(f"{REG}/prediction_skill.csv", caption="../report/prediction_skill.rst", category="4 Regression"),
+        skill_figure=report(
+            f"{REG}/prediction_skill.png", caption="../report/prediction_skill.rst", category="4 Regression"
+        ),
         cv_predictions=f"{REG}/cv_predictions.csv",
         test_parameters=f"{REG}/test_parameters.csv",
         best_model=f"{REG}/best_model.txt",
         cv_figure=report(f"{REG}/cv_comparison.png", caption="../report/cv.rst", category="4 Regression"),
         table6_figure=report(f"{REG}/table6.png", caption="../report/table6.rst", category="4 Regression"),
-    params:
-        cfg=config["regression"],
-        train=TRAIN_SITES,
-        test=TEST_SITES,
     log:
         "logs/regression.log",
     benchmark:
@@ -44,6 +41,10 @@ rule regression:
     resources:
         mem_mb=2000,
         runtime=20,
+    params:
+        cfg=config["regression"],
+        train=TRAIN_SITES,
+        test=TEST_SITES,
     script:
         "../scripts/regression.py"
 
@@ -55,10 +56,6 @@ rule predict_fe:
         predictions=f"{REG}/test_parameters.csv",
     output:
         table=f"{REG}/fe/{{site}}.parquet",
-    params:
-        solver=config["solver"],
-        speeds=config["regression"]["prediction_speeds_kmh"],
-        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     log:
         "logs/predict_fe/{site}.log",
     benchmark:
@@ -67,6 +64,10 @@ rule predict_fe:
     resources:
         mem_mb=1500,
         runtime=60,
+    params:
+        solver=config["solver"],
+        speeds=config["regression"]["prediction_speeds_kmh"],
+        cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
     script:
         "../scripts/predict_fe.py"
 

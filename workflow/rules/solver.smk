@@ -8,12 +8,7 @@ rule mesh_study:
         pavement=f"{RESULTS}/sites/{MESH_STUDY_SITE}/pavement.npz",
     output:
         table=report(f"{RESULTS}/mesh_study/table.csv", caption="../report/mesh_study.rst", category="2 Mesh study"),
-        figure=report(f"{RESULTS}/mesh_study/figure9.png", caption="../report/mesh_study.rst",
-                      category="2 Mesh study"),
-    params:
-        cfg=config["mesh_study"],
-        solver=config["solver"],
-        site=MESH_STUDY_SITE,
+        figure=report(f"{RESULTS}/mesh_study/figure9.png", caption="../report/mesh_study.rst", category="2 Mesh study"),
     log:
         "logs/mesh_study.log",
     benchmark:
@@ -22,5 +17,9 @@ rule mesh_study:
     resources:
         mem_mb=2000,
         runtime=60,
+    params:
+        cfg=config["mesh_study"],
+        solver=config["solver"],
+        site=MESH_STUDY_SITE,
     script:
         "../scripts/mesh_study.py"

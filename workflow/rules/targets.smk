@@ -13,8 +13,10 @@ from snakemake.logging import logger
 MIN_SITES, MIN_SECTIONS = 8, 3
 POPULATION = len(SITES) >= MIN_SITES and len(SECTIONS) >= MIN_SECTIONS
 if not POPULATION:
-    logger.warning(f"campaign has {len(SITES)} sites in {len(SECTIONS)} sections: regression and model criticism "
-                   f"need at least {MIN_SITES} sites in {MIN_SECTIONS} sections and are skipped")
+    logger.warning(
+        f"campaign has {len(SITES)} sites in {len(SECTIONS)} sections: regression and model criticism "
+        f"need at least {MIN_SITES} sites in {MIN_SECTIONS} sections and are skipped"
+    )
 
 
 def all_targets():
@@ -28,6 +30,7 @@ def all_targets():
         targets.append(f"{RESULTS}/truth/campaign.json")
     for s in SITES:
         targets += site_outputs(s)
+    targets += list(rules.report_gallery.output)  # the per-site figures as the report shows them
     return targets
 
 

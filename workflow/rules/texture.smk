@@ -12,8 +12,6 @@ rule despeckle:
         surfaces=temp(f"{RESULTS}/sites/{{site}}/despeckled.npz"),
         stats=f"{RESULTS}/sites/{{site}}/despeckle.json",
         quality=f"{RESULTS}/sites/{{site}}/quality.json",
-    params:
-        cfg=config["texture"],
     log:
         "logs/despeckle/{site}.log",
     benchmark:
@@ -22,6 +20,8 @@ rule despeckle:
     resources:
         mem_mb=1500,
         runtime=5,
+    params:
+        cfg=config["texture"],
     script:
         "../scripts/despeckle.py"
 
@@ -32,8 +32,6 @@ rule separate_bands:
         surfaces=rules.despeckle.output.surfaces,
     output:
         bands=temp(f"{RESULTS}/sites/{{site}}/bands.npz"),
-    params:
-        cfg=config["texture"],
     log:
         "logs/separate_bands/{site}.log",
     benchmark:
@@ -42,6 +40,8 @@ rule separate_bands:
     resources:
         mem_mb=2000,
         runtime=5,
+    params:
+        cfg=config["texture"],
     script:
         "../scripts/separate_bands.py"
 
@@ -52,8 +52,6 @@ rule mpd:
         surfaces=rules.despeckle.output.surfaces,
     output:
         mpd=f"{RESULTS}/sites/{{site}}/mpd.json",
-    params:
-        cfg=config["texture"],
     log:
         "logs/mpd/{site}.log",
     benchmark:
@@ -62,6 +60,8 @@ rule mpd:
     resources:
         mem_mb=1500,
         runtime=5,
+    params:
+        cfg=config["texture"],
     script:
         "../scripts/mpd.py"
 
@@ -73,8 +73,6 @@ rule texture_parameters:
         mpd=rules.mpd.output.mpd,
     output:
         table=f"{RESULTS}/sites/{{site}}/texture.parquet",
-    params:
-        cfg=config["texture"],
     log:
         "logs/texture_parameters/{site}.log",
     benchmark:
@@ -83,6 +81,8 @@ rule texture_parameters:
     resources:
         mem_mb=2500,
         runtime=10,
+    params:
+        cfg=config["texture"],
     script:
         "../scripts/texture_parameters.py"
 
@@ -94,13 +94,7 @@ rule figure7:
         surfaces=rules.despeckle.output.surfaces,
         bands=rules.separate_bands.output.bands,
     output:
-        figure=report(
-            f"{RESULTS}/sites/{{site}}/figure7.png",
-            caption="../report/figure7.rst",
-            category="1 Texture",
-            subcategory="Figure 7 per site",
-            labels={"site": "{site}"},
-        ),
+        figure=f"{RESULTS}/sites/{{site}}/figure7.png",  # in the report as a reduced copy (rule report_gallery)
     log:
         "logs/figure7/{site}.log",
     benchmark:
@@ -118,20 +112,28 @@ rule scan_quality:
     flagged sites are logged as WARNINGs and marked in the report."""
     input:
         quality=expand(f"{RESULTS}/sites/{{site}}/quality.json", site=SITES),
-    params:
-        quality=config.get("quality", {}),
-        strip_length_mm=config["mesh"]["length_mm"],
     output:
-        table=report(f"{RESULTS}/texture/quality.csv", caption="../report/quality.rst", category="1 Texture",
-                     subcategory="Scan quality"),
-        figure=report(f"{RESULTS}/texture/quality.png", caption="../report/quality.rst", category="1 Texture",
-                      subcategory="Scan quality"),
+        table=report(
+            f"{RESULTS}/texture/quality.csv",
+            caption="../report/quality.rst",
+            category="1 Texture",
+            subcategory="Scan quality",
+        ),
+        figure=report(
+            f"{RESULTS}/texture/quality.png",
+            caption="../report/quality.rst",
+            category="1 Texture",
+            subcategory="Scan quality",
+        ),
     log:
         "logs/scan_quality.log",
     threads: 1
     resources:
         mem_mb=500,
         runtime=5,
+    params:
+        quality=config.get("quality", {}),
+        strip_length_mm=config["mesh"]["length_mm"],
     script:
         "../scripts/scan_quality.py"
 
@@ -147,8 +149,9 @@ rule texture_campaign:
         long=f"{RESULTS}/texture/texture_long.parquet",
         wide=f"{RESULTS}/texture/campaign.parquet",
         table4=report(f"{RESULTS}/texture/table4.csv", caption="../report/table4.rst", category="1 Texture"),
-        figure=report(f"{RESULTS}/texture/distributions.png", caption="../report/distributions.rst",
-                      category="1 Texture"),
+        figure=report(
+            f"{RESULTS}/texture/distributions.png", caption="../report/distributions.rst", category="1 Texture"
+        ),
     log:
         "logs/texture_campaign.log",
     threads: 1

@@ -1,32 +1,54 @@
 """Snakemake adapter: back-calculate one site's friction law with one method (study | ours)."""
+
 import pandas as pd
 
-from skidsim import calibration
+from skidsim.calibration import JointOptions, StudyOptions, calibrate_study
+from skidsim.calibration.site import calibrate_ours_site, measured_points, site_simulator
 from skidsim.runlog import setup_logging, write_parquet
-from skidsim.workflow_support import calibrate_ours_site, measured_points, site_simulator
 
 log = setup_logging(snakemake.log[0])
 site, method = snakemake.wildcards.site, snakemake.wildcards.method
 cfg = snakemake.params.calibration
-simulate, cache, scfg = site_simulator(snakemake.input.pavement, snakemake.params.solver, snakemake.params.cache,
-                                       site)
-log.info("%s: method %s, solver element %.2f mm, slide %.1f mm, %d cached FE evaluations", site, method,
-         scfg.element_mm, scfg.slide_length_mm, len(cache))
+simulate, cache, scfg = site_simulator(snakemake.input.pavement, snakemake.params.solver, snakemake.params.cache, site)
+log.info(
+    "%s: method %s, solver element %.2f mm, slide %.1f mm, %d cached FE evaluations",
+    site,
+    method,
+    scfg.element_mm,
+    scfg.slide_length_mm,
+    len(cache),
+)
 points = pd.read_parquet(snakemake.input.dft)
 measured = measured_points(points, site)
 speeds = [float(v) for v in snakemake.params.speeds]
 if method == "study":
-    c = cfg["study"]
-    intervals = {k: tuple(v) for k, v in c["intervals"].items()}
-    start = (c["start"]["mu_s"], c["start"]["mu_k"], c["start"]["alpha"])
     order = (("mu_k", max(speeds)), ("mu_s", min(speeds)), ("alpha", sorted(speeds)[1]))
-    result = calibration.calibrate_study(simulate, {v: measured[v] for v in speeds}, intervals=intervals,
-                                         start=start, tol=c["tol"], max_iter=c["max_iter"], order=order,
-                                         source=snakemake.input.dft)
+    result = calibrate_study(
+        simulate,
+        {v: measured[v] for v in speeds},
+        StudyOptions.from_config(cfg["study"]),
+        order=order,
+        source=snakemake.input.dft,
+    )
 else:
-    result = calibrate_ours_site(simulate, snakemake.input.traces, site, cfg["ours"], speeds,
-                                 snakemake.input.prior, log)
-log.info("%s %s: %s; %d FE runs, %d steps, converged=%s %s", site, method, result.params, result.n_fe_runs,
-         result.n_steps, result.converged, result.message)
+    result = calibrate_ours_site(
+        simulate,
+        snakemake.input.traces,
+        site,
+        JointOptions.from_config(cfg["ours"]),
+        speeds,
+        snakemake.input.prior,
+        log,
+    )
+log.info(
+    "%s %s: %s; %d FE runs, %d steps, converged=%s %s",
+    site,
+    method,
+    result.params,
+    result.n_fe_runs,
+    result.n_steps,
+    result.converged,
+    result.message,
+)
 write_parquet(snakemake.output.history, result.history.assign(site=site, method=method))
 result.to_json(snakemake.output.result)

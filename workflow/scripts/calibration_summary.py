@@ -5,12 +5,14 @@ fit_statistics.csv and Figure 10 beside the FE-calibrated methods; validation.pa
 
 The per-site identifiability records (rule calibration_identifiability) become identifiability.csv and its figure;
 each flagged site gets a WARNING line here and the log ends with the count of flagged sites per flag."""
+
 import json
 from pathlib import Path
 
 import pandas as pd
 
-from skidsim import calibration, identifiability
+from skidsim import calibration
+from skidsim.calibration import identifiability
 from skidsim.plotting.calibration import plot_calibration_curves, plot_figure10
 from skidsim.plotting.identifiability import plot_identifiability
 from skidsim.runlog import setup_logging, write_csv, write_parquet
@@ -33,9 +35,20 @@ if ifi_csv:
     model = ifi.model_validation_rows(pd.read_csv(ifi_csv), vtable)
     vfig = pd.concat([vtable[model.columns], model], ignore_index=True)
 stats = calibration.figure10_statistics(vfig)
-params = pd.DataFrame([{"site": s, "method": m, "mu_s": r.params.mu_s, "mu_k": r.params.mu_k,
-                        "alpha": r.params.alpha, "converged": r.converged}
-                       for s, per in results.items() for m, r in per.items()])
+params = pd.DataFrame(
+    [
+        {
+            "site": s,
+            "method": m,
+            "mu_s": r.params.mu_s,
+            "mu_k": r.params.mu_k,
+            "alpha": r.params.alpha,
+            "converged": r.converged,
+        }
+        for s, per in results.items()
+        for m, r in per.items()
+    ]
+)
 traces = pd.read_parquet(snakemake.input.traces)
 measured = {s: g[["speed_kmh", "mu"]].sort_values("speed_kmh") for s, g in traces.groupby("site")}
 runs = {s: {m: g[["speed_kmh", "sn_sim"]] for m, g in gs.groupby("method")} for s, gs in vtable.groupby("site")}
@@ -55,16 +68,27 @@ if records:
     write_csv(snakemake.output.identifiability, ident)
     plot_identifiability(ident, snakemake.output.identifiability_figure, bounds=records[0]["bounds"])
 elif hasattr(snakemake.output, "identifiability"):
-    raise ValueError("calibration_summary: outputs identifiability.csv/.png declared but no identifiability records "
-                     "given (input 'identifiability')")
+    raise ValueError(
+        "calibration_summary: outputs identifiability.csv/.png declared but no identifiability records "
+        "given (input 'identifiability')"
+    )
 log.info("\n%s", stats.to_string())
 for r in records:
     if r["flags"]:
-        log.warning("%s %s flagged: %s", r["site"], r["method"],
-                    " | ".join(f"{f}: {r['reasons'][f]}" for f in r["flags"]))
-for m, g in (ident.groupby("method") if len(ident) else []):
+        log.warning(
+            "%s %s flagged: %s", r["site"], r["method"], " | ".join(f"{f}: {r['reasons'][f]}" for f in r["flags"])
+        )
+for m, g in ident.groupby("method") if len(ident) else []:
     counts = ", ".join(f"{f} {int(g[f].sum())}" for f in identifiability.FLAGS)
-    log.info("identifiability (%s): %d of %d sites flagged (%s); fit within the trace's noise at %d; mu_s / mu_k / "
-             "alpha identified at %d / %d / %d", m, int((g["n_flags"] > 0).sum()), len(g), counts,
-             int(g["within_noise"].sum()), int(g["mu_s_identified"].sum()), int(g["mu_k_identified"].sum()),
-             int(g["alpha_identified"].sum()))
+    log.info(
+        "identifiability (%s): %d of %d sites flagged (%s); fit within the trace's noise at %d; mu_s / mu_k / "
+        "alpha identified at %d / %d / %d",
+        m,
+        int((g["n_flags"] > 0).sum()),
+        len(g),
+        counts,
+        int(g["within_noise"].sum()),
+        int(g["mu_s_identified"].sum()),
+        int(g["mu_k_identified"].sum()),
+        int(g["alpha_identified"].sum()),
+    )

@@ -1,11 +1,11 @@
 """Snakemake adapter: despeckle a scan, measure its quality and check it against the configured limits, fill
 invalid points. The limits come from the config (not the rule's params): changing one re-runs only the campaign's
 scan_quality rule, which applies the limits again to every site's measures."""
+
 from skidsim.runlog import setup_logging, write_json
-from skidsim.scans import read_scan
+from skidsim.scans import read_scan, save_surfaces
 from skidsim.texture import TextureOptions, despeckle_detail, fill_invalid
 from skidsim.texture.quality import QualityOptions, check_quality, scan_quality
-from skidsim.workflow_support import save_surfaces
 
 log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site
@@ -23,10 +23,27 @@ write_json(snakemake.output.quality, {**q.to_dict(), "method": o.despeckle_metho
 check_quality(q, qo, log)  # action stop: raises ScanQualityError naming the site, measure, value and limit
 filled = fill_invalid(res.surface, method=o.fill)
 save_surfaces(snakemake.output.surfaces, {"clean": filled})
-write_json(snakemake.output.stats, {"site": site, "method": o.despeckle_method,
-                                    "k": o.despeckle_k, "n_points": int(surface.heights.size),
-                                    "n_replaced": res.n_replaced, "invalid_fraction": invalid,
-                                    "height_step_mm": res.step_mm, "height_step_source": res.step_source,
-                                    "dx_mm": surface.dx, "dy_mm": surface.dy})
-log.info("%s: %d points replaced (%s), %.3f %% invalid filled; height step %.4g mm (%s)", site, res.n_replaced,
-         o.despeckle_method, 100 * invalid, res.step_mm, res.step_source)
+write_json(
+    snakemake.output.stats,
+    {
+        "site": site,
+        "method": o.despeckle_method,
+        "k": o.despeckle_k,
+        "n_points": int(surface.heights.size),
+        "n_replaced": res.n_replaced,
+        "invalid_fraction": invalid,
+        "height_step_mm": res.step_mm,
+        "height_step_source": res.step_source,
+        "dx_mm": surface.dx,
+        "dy_mm": surface.dy,
+    },
+)
+log.info(
+    "%s: %d points replaced (%s), %.3f %% invalid filled; height step %.4g mm (%s)",
+    site,
+    res.n_replaced,
+    o.despeckle_method,
+    100 * invalid,
+    res.step_mm,
+    res.step_source,
+)

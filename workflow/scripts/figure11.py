@@ -1,4 +1,5 @@
 """Snakemake adapter: predicted vs measured DFT of held-out sites at six speeds (study Figure 11) + error tables."""
+
 import pandas as pd
 
 from skidsim import regression
@@ -11,9 +12,12 @@ measured = pd.read_parquet(snakemake.input.dft)[["site", "speed_kmh", "mu"]]
 best = open(snakemake.input.best_model).read().strip()
 tables, summaries = [], []
 for model, g in fe.groupby("model", sort=False):
-    t = regression.figure11_table(g[["site", "speed_kmh", "sn_sim"]].rename(columns={"sn_sim": "predicted"}),
-                                  measured, pred_file=f"FE predictions ({model})",
-                                  measured_file=snakemake.input.dft)
+    t = regression.figure11_table(
+        g[["site", "speed_kmh", "sn_sim"]].rename(columns={"sn_sim": "predicted"}),
+        measured,
+        pred_file=f"FE predictions ({model})",
+        measured_file=snakemake.input.dft,
+    )
     s = regression.figure11_summary(t)
     t.insert(0, "model", model)
     s.insert(0, "model", model)

@@ -1,8 +1,8 @@
 """Snakemake adapter: the study's Figure 7 (a-b) for one site."""
+
 from skidsim.plotting.texture import plot_figure7
 from skidsim.runlog import setup_logging
-from skidsim.scans import read_scan
-from skidsim.workflow_support import load_surfaces
+from skidsim.scans import load_surfaces, read_scan
 
 log = setup_logging(snakemake.log[0])
 raw = read_scan(snakemake.input.scan)

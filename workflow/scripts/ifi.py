@@ -1,4 +1,5 @@
 """Snakemake adapter: the IFI (ASTM E1960) of each site from its mpd.json and its DFT trace at 20 km/h."""
+
 import json
 from pathlib import Path
 
@@ -19,7 +20,14 @@ table = ifi.ifi_table(mpd, dft20)
 write_csv(snakemake.output.ifi, table)
 n_na = int(table["f60"].isna().sum())
 if n_na:
-    log.warning("IFI not available for %d site(s) without an MPD: %s", n_na,
-                ", ".join(table.loc[table["f60"].isna(), "site"]))
-log.info("IFI of %d sites: F60 %.3f .. %.3f, Sp %.1f .. %.1f km/h", len(table), table["f60"].min(),
-         table["f60"].max(), table["sp_kmh"].min(), table["sp_kmh"].max())
+    log.warning(
+        "IFI not available for %d site(s) without an MPD: %s", n_na, ", ".join(table.loc[table["f60"].isna(), "site"])
+    )
+log.info(
+    "IFI of %d sites: F60 %.3f .. %.3f, Sp %.1f .. %.1f km/h",
+    len(table),
+    table["f60"].min(),
+    table["f60"].max(),
+    table["sp_kmh"].min(),
+    table["sp_kmh"].max(),
+)

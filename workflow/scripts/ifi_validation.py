@@ -1,4 +1,5 @@
 """Snakemake adapter: the PIARC/IFI speed model beside the FE-calibrated laws at the validation speeds."""
+
 import pandas as pd
 
 from skidsim import ifi

@@ -1,10 +1,11 @@
 """Snakemake adapter: FE simulation of a held-out site with friction parameters predicted from its texture."""
+
 import pandas as pd
 
 from skidsim import calibration
+from skidsim.calibration.site import site_simulator
 from skidsim.friction import ExponentialDecay
 from skidsim.runlog import setup_logging, write_parquet
-from skidsim.workflow_support import site_simulator
 
 log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site

@@ -1,8 +1,7 @@
 """Snakemake adapter: the campaign's scan-quality table (one row per site, the limits applied) and its figure."""
+
 import json
 from dataclasses import asdict, fields
-
-import pandas as pd
 
 from skidsim.plotting.texture import plot_scan_quality
 from skidsim.runlog import setup_logging, write_csv

@@ -1,8 +1,9 @@
 """Snakemake adapter: form removal and Butterworth separation into raw, macro and micro texture."""
+
 from skidsim import texture
 from skidsim.runlog import setup_logging
+from skidsim.scans import load_surfaces, save_surfaces
 from skidsim.texture import TextureOptions
-from skidsim.workflow_support import load_surfaces, save_surfaces
 
 log = setup_logging(snakemake.log[0])
 o = TextureOptions(**snakemake.params.cfg)

@@ -1,7 +1,8 @@
 """Snakemake adapter: generate one synthetic site (scan X3P, DFT trace CSV, ground truth JSON)."""
+
 from skidsim import synthetic
+from skidsim.config import synthetic_config
 from skidsim.runlog import setup_logging
-from skidsim.workflow_support import synthetic_config
 
 log = setup_logging(snakemake.log[0])
 cfg = synthetic_config(snakemake.config)

@@ -1,9 +1,10 @@
 """Snakemake adapter: write the synthetic campaign's sites.csv (the data contract)."""
+
 from pathlib import Path
 
 from skidsim import synthetic
+from skidsim.config import synthetic_config
 from skidsim.runlog import setup_logging
-from skidsim.workflow_support import synthetic_config
 
 log = setup_logging(snakemake.log[0])
 design = synthetic.design_campaign(synthetic_config(snakemake.config))

@@ -1,4 +1,5 @@
 """Snakemake adapter: campaign texture table with metadata, Table 4 statistics, distributions figure."""
+
 import pandas as pd
 
 from skidsim import texture

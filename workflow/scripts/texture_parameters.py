@@ -1,12 +1,13 @@
 """Snakemake adapter: the study's Table 3 areal parameters for raw, macro and micro texture (long form)."""
+
 import json
 
 import numpy as np
 
 from skidsim import texture
 from skidsim.runlog import setup_logging, write_parquet
+from skidsim.scans import load_surfaces
 from skidsim.texture import MPDResult, TextureOptions
-from skidsim.workflow_support import load_surfaces
 
 log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site

@@ -1,4 +1,4 @@
-"""Campaign generators independent of :mod:`skidsim.synthetic` (issue 25, item 1).
+"""Campaign generators independent of :mod:`skidsim.synthetic`.
 
 Two generators, each a texture model with a friction-speed model of the literature whose parameters are driven by
 texture measured on the generated surface (docs/synthetic-campaign.md, "Independent generators"):
@@ -8,11 +8,31 @@ texture measured on the generated surface (docs/synthetic-campaign.md, "Independ
 * ``spectral``: a negatively skewed random field from an anisotropic power spectrum, sand-grain shot-noise
   microtexture (:mod:`.spectral`); friction: Rado's log-normal speed model.
 
-The Penn State model is available to either (``overrides={"friction": {"model": "penn_state"}}``).
+The Penn State model is available to either (``overrides={"friction": {"model": "penn_state"}}``), and either may
+carry a hidden texture-and-speed effect on top (``{"friction": {"hidden_effect": "squeeze", "hidden_kappa": 0.3}}``;
+:func:`.friction_models.hidden_factor`), absent by default.
 """
 
-from .campaign import (GENERATORS, SiteData, design_campaign, generate_site, generator_config, texture_measures,
-                       write_campaign, write_site)
+from .campaign import (
+    GENERATORS,
+    SiteData,
+    design_campaign,
+    generate_site,
+    generator_config,
+    site_mu,
+    texture_measures,
+    write_campaign,
+    write_site,
+)
 
-__all__ = ["GENERATORS", "SiteData", "design_campaign", "generate_site", "generator_config", "texture_measures",
-           "write_campaign", "write_site"]
+__all__ = [
+    "GENERATORS",
+    "SiteData",
+    "design_campaign",
+    "generate_site",
+    "generator_config",
+    "site_mu",
+    "texture_measures",
+    "write_campaign",
+    "write_site",
+]

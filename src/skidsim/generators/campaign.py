@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..atomic import atomic_path, write_text
 from ..errors import ConfigError
-from ..runlog import atomic_path
 from ..surface import Surface
 from . import chips, friction_models, scanner, spectral
 
@@ -32,28 +32,50 @@ TEXTURES = {"chips": chips, "spectral": spectral}
 COMMON = {
     "seed": 20261125,
     "n_sites": 36,
-    "n_sections": None,              # None: min(n_sites, max(3, round(n_sites / 3)))
-    "shape": [2048, 2448],           # rows (y), cols (x)
-    "scanner": {"tilt_max": 0.002, "tilt_axis": "any", "dropout_fraction": 0.005,
-                "dropout_radius_mm": [0.2, 0.8], "dropout_low_quantile": 0.2, "spike_fraction": 0.0005,
-                "spike_mm": [3.0, 5.0], "z_step_mm": 0.01},
-    "friction": {"model": "piarc", "sq_ref_mm": 0.03, "micro_cut_mm": 0.5,
-                 "section_level_sd": 0.05, "site_level_sd": 0.03,     # log-normal factors on the 20 km/h level
-                 "section_sp_sd": 0.08, "site_sp_sd": 0.04,           # log-normal factors on Sp (or PNG)
-                 "v_peak_kmh": [1.0, 4.0]},                           # Rado: U(low, high)
-    "site_factor_sd": 0.12,          # log-normal site factors on the section's macro and micro amplitudes
-    "dft": {"v_start_kmh": [80.0, 85.0], "v_end_kmh": 5.0, "step_kmh": 0.5, "step_jitter_kmh": 0.05,
-            "noise_mu": 0.01},
-    "temperature_c": [8.0, 28.0],    # section's temperature U(low, high); site +- N(0, 0.5); no effect on friction
+    "n_sections": None,  # None: min(n_sites, max(3, round(n_sites / 3)))
+    "shape": [2048, 2448],  # rows (y), cols (x)
+    "scanner": {
+        "tilt_max": 0.002,
+        "tilt_axis": "any",
+        "dropout_fraction": 0.005,
+        "dropout_radius_mm": [0.2, 0.8],
+        "dropout_low_quantile": 0.2,
+        "spike_fraction": 0.0005,
+        "spike_mm": [3.0, 5.0],
+        "z_step_mm": 0.01,
+    },
+    "friction": {
+        "model": "piarc",
+        "sq_ref_mm": 0.03,
+        "micro_cut_mm": 0.5,
+        "section_level_sd": 0.05,
+        "site_level_sd": 0.03,  # log-normal factors on the 20 km/h level
+        "section_sp_sd": 0.08,
+        "site_sp_sd": 0.04,  # log-normal factors on Sp (or PNG)
+        "v_peak_kmh": [1.0, 4.0],  # Rado: U(low, high)
+        "hidden_effect": None,  # a hidden texture-and-speed effect on the DFT: null | squeeze | drainage
+        "hidden_kappa": 0.0,  # its strength (friction_models.hidden_factor), dimensionless
+    },
+    "site_factor_sd": 0.12,  # log-normal site factors on the section's macro and micro amplitudes
+    "dft": {"v_start_kmh": [80.0, 85.0], "v_end_kmh": 5.0, "step_kmh": 0.5, "step_jitter_kmh": 0.05, "noise_mu": 0.01},
+    "temperature_c": [8.0, 28.0],  # section's temperature U(low, high); site +- N(0, 0.5); no effect on friction
     "test_date": "2026-06-15",
 }
 
 #: The generators: texture model, friction model and the scanner they come with.
 GENERATORS = {
-    "chips": {"texture": "chips", "spacing_mm": 0.05, "scanner": {"tilt_axis": "y"},
-              "friction": {"model": "piarc", "sq_ref_mm": 0.015}},
-    "spectral": {"texture": "spectral", "spacing_mm": 0.1, "scanner": {"tilt_axis": "any"},
-                 "friction": {"model": "rado", "sq_ref_mm": 0.015}},
+    "chips": {
+        "texture": "chips",
+        "spacing_mm": 0.05,
+        "scanner": {"tilt_axis": "y"},
+        "friction": {"model": "piarc", "sq_ref_mm": 0.015},
+    },
+    "spectral": {
+        "texture": "spectral",
+        "spacing_mm": 0.1,
+        "scanner": {"tilt_axis": "any"},
+        "friction": {"model": "rado", "sq_ref_mm": 0.015},
+    },
 }
 
 
@@ -73,14 +95,30 @@ def generator_config(name: str, overrides: dict | None = None) -> dict:
         raise ConfigError(f"generator: expected one of {', '.join(GENERATORS)}, got {name!r}")
     g = GENERATORS[name]
     base = _merge(COMMON, {"scanner": g["scanner"], "friction": g["friction"]}, name)
-    base.update({"generator": name, "texture": g["texture"], "spacing_mm": g["spacing_mm"],
-                 "texture_params": copy.deepcopy(TEXTURES[g["texture"]].DEFAULTS)})
+    base.update(
+        {
+            "generator": name,
+            "texture": g["texture"],
+            "spacing_mm": g["spacing_mm"],
+            "texture_params": copy.deepcopy(TEXTURES[g["texture"]].DEFAULTS),
+        }
+    )
     cfg = _merge(base, overrides or {}, name)
     if cfg["friction"]["model"] not in friction_models.MODELS:
-        raise ConfigError(f"{name}.friction.model: expected one of {', '.join(friction_models.MODELS)}, "
-                          f"got {cfg['friction']['model']!r}")
+        raise ConfigError(
+            f"{name}.friction.model: expected one of {', '.join(friction_models.MODELS)}, "
+            f"got {cfg['friction']['model']!r}"
+        )
     if cfg["n_sites"] < 1:
         raise ConfigError(f"{name}.n_sites: expected at least 1 site, got {cfg['n_sites']}")
+    f = cfg["friction"]
+    if f["hidden_effect"] is not None and f["hidden_effect"] not in friction_models.HIDDEN_EFFECTS:
+        raise ConfigError(
+            f"{name}.friction.hidden_effect: expected null or one of "
+            f"{', '.join(friction_models.HIDDEN_EFFECTS)}, got {f['hidden_effect']!r}"
+        )
+    if not (isinstance(f["hidden_kappa"], (int, float)) and f["hidden_kappa"] >= 0):
+        raise ConfigError(f"{name}.friction.hidden_kappa: expected a number >= 0, got {f['hidden_kappa']!r}")
     return cfg
 
 
@@ -109,10 +147,16 @@ def design_campaign(cfg: dict) -> pd.DataFrame:
         sp = float(np.exp(s_fric.normal(0.0, f["section_sp_sd"])))
         t_sec = float(s_temp.uniform(*cfg["temperature_c"]))
         for j, _ in enumerate(members):
-            rows.append({"site": f"{sec}-{j + 1}", "section": sec,
-                         "temperature_c": round(t_sec + float(s_temp.normal(0.0, 0.5)), 1),
-                         **{f"sec_{k2}": v for k2, v in draws.items()},
-                         "sec_level_factor": level, "sec_sp_factor": sp})
+            rows.append(
+                {
+                    "site": f"{sec}-{j + 1}",
+                    "section": sec,
+                    "temperature_c": round(t_sec + float(s_temp.normal(0.0, 0.5)), 1),
+                    **{f"sec_{k2}": v for k2, v in draws.items()},
+                    "sec_level_factor": level,
+                    "sec_sp_factor": sp,
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -120,6 +164,7 @@ def design_campaign(cfg: dict) -> pd.DataFrame:
 class SiteData:
     """One site: ``surface`` (the scan, heights mm with NaN dropouts), ``clean`` (heights mm before the scanner),
     ``dft`` (speed_kmh, mu in spin-down order) and ``truth`` (JSON-serialisable)."""
+
     surface: Surface
     clean: np.ndarray
     dft: pd.DataFrame
@@ -138,8 +183,13 @@ def texture_measures(clean: np.ndarray, dx_mm: float, micro_cut_mm: float) -> di
     mpd = mean_profile_depth(s, segment_mm=seg).mpd_mm
     cut = max(micro_cut_mm, 5 * dx_mm)
     micro = separate_bands(s, macro=(cut, 50.0))["micro"].heights
-    return {"mpd_mm": float(mpd), "micro_sq_mm": float(np.std(micro)), "micro_cut_mm": cut,
-            "mpd_segment_mm": seg, "sq_mm": float(np.std(clean))}
+    return {
+        "mpd_mm": float(mpd),
+        "micro_sq_mm": float(np.std(micro)),
+        "micro_cut_mm": cut,
+        "mpd_segment_mm": seg,
+        "sq_mm": float(np.std(clean)),
+    }
 
 
 def spin_down(rng: np.random.Generator, c: dict) -> np.ndarray:
@@ -161,17 +211,39 @@ def _site_friction(rng: np.random.Generator, row, meas: dict, f: dict) -> dict:
     v_peak = float(rng.uniform(*f["v_peak_kmh"]))
     mu20 = base_level * float(row["sec_level_factor"]) * site_level
     sp_factor = float(row["sec_sp_factor"]) * site_sp
-    params = friction_models.model_parameters(f["model"], mu20, meas["mpd_mm"], sp_factor=sp_factor,
-                                              v_peak_kmh=v_peak)
-    return {"friction_model": f["model"], "parameters": params, "level_from_micro": base_level,
-            "section_level_factor": float(row["sec_level_factor"]), "site_level_factor": site_level,
-            "section_sp_factor": float(row["sec_sp_factor"]), "site_sp_factor": site_sp, "mu20": mu20}
+    params = friction_models.model_parameters(f["model"], mu20, meas["mpd_mm"], sp_factor=sp_factor, v_peak_kmh=v_peak)
+    hidden = {
+        "effect": f["hidden_effect"],
+        "kappa": float(f["hidden_kappa"]),
+        "sp_kmh": friction_models.ifi_speed_constant_kmh(meas["mpd_mm"]) * sp_factor,
+    }
+    return {
+        "friction_model": f["model"],
+        "parameters": params,
+        "level_from_micro": base_level,
+        "section_level_factor": float(row["sec_level_factor"]),
+        "site_level_factor": site_level,
+        "section_sp_factor": float(row["sec_sp_factor"]),
+        "site_sp_factor": site_sp,
+        "mu20": mu20,
+        "hidden": hidden,
+    }
+
+
+def site_mu(fr: dict, v_kmh) -> np.ndarray:
+    """The true friction of a site at ``v_kmh`` (km/h): its model (``fr`` as :func:`generate_site` records it in
+    the truth) times the hidden effect's factor (:func:`friction_models.hidden_factor`; 1 without one)."""
+    mu = friction_models.evaluate(fr["friction_model"], fr["parameters"], v_kmh)
+    h = fr.get("hidden") or {}
+    if h.get("effect") is None:
+        return mu
+    return mu * friction_models.hidden_factor(h["effect"], h["kappa"], h["sp_kmh"], v_kmh)
 
 
 def _trace(rng: np.random.Generator, fr: dict, c: dict) -> pd.DataFrame:
     """The DFT trace (speed_kmh, mu; spin-down order) of the friction truth ``fr`` with settings ``c``."""
     speeds = spin_down(rng, c)
-    mu_true = friction_models.evaluate(fr["friction_model"], fr["parameters"], speeds)
+    mu_true = site_mu(fr, speeds)
     mu = np.round(mu_true + rng.normal(0.0, c["noise_mu"], speeds.size), 3)
     return pd.DataFrame({"speed_kmh": np.round(speeds, 2), "mu": mu})
 
@@ -191,15 +263,30 @@ def generate_site(row, cfg: dict) -> SiteData:
     fr = _site_friction(s_fric, row, meas, cfg["friction"])
     dft = _trace(s_trace, fr, cfg["dft"])
     grid = np.arange(5.0, 85.0, 5.0)
-    curve = friction_models.evaluate(fr["friction_model"], fr["parameters"], grid)
-    truth = {"site": site, "section": str(row["section"]), "generator": cfg["generator"],
-             "texture_model": cfg["texture"], **fr, "texture_measures": meas, "section_texture": sec,
-             "site_texture_factors": site_f, "layout": layout, "scanner": scan_info, "spacing_mm": dx,
-             "shape": list(shape), "noise_mu": cfg["dft"]["noise_mu"],
-             "curve": {"speed_kmh": grid.tolist(), "mu": curve.tolist()},
-             "temperature_c": float(row["temperature_c"]), "seed": int(cfg["seed"])}
-    meta = {"Date": f"{cfg['test_date']}T12:00:00+00:00", "Creator": f"skidsim.generators.{cfg['generator']}",
-            "InstrumentModel": f"independent generator {cfg['generator']}"}
+    curve = site_mu(fr, grid)
+    truth = {
+        "site": site,
+        "section": str(row["section"]),
+        "generator": cfg["generator"],
+        "texture_model": cfg["texture"],
+        **fr,
+        "texture_measures": meas,
+        "section_texture": sec,
+        "site_texture_factors": site_f,
+        "layout": layout,
+        "scanner": scan_info,
+        "spacing_mm": dx,
+        "shape": list(shape),
+        "noise_mu": cfg["dft"]["noise_mu"],
+        "curve": {"speed_kmh": grid.tolist(), "mu": curve.tolist()},
+        "temperature_c": float(row["temperature_c"]),
+        "seed": int(cfg["seed"]),
+    }
+    meta = {
+        "Date": f"{cfg['test_date']}T12:00:00+00:00",
+        "Creator": f"skidsim.generators.{cfg['generator']}",
+        "InstrumentModel": f"independent generator {cfg['generator']}",
+    }
     return SiteData(surface=Surface(heights, dx, dx, name=site, meta=meta), clean=clean, dft=dft, truth=truth)
 
 
@@ -212,15 +299,14 @@ def write_site(data: SiteData, scan_path, dft_path, truth_path, z_step_mm: float
     hv = data.surface.heights[np.isfinite(data.surface.heights)]
     dtype = "I" if (hv.size == 0 or float(np.abs(hv).max()) / z_step_mm < 32000) else "L"
     write_x3p(scan_path, data.surface, dtype=dtype, z_increment_mm=z_step_mm, meta=data.surface.meta)
-    with atomic_path(dft_path) as tmp:
-        lines = ["speed_kmh,mu"] + [f"{v:.2f},{m:.3f}" for v, m in zip(data.dft["speed_kmh"], data.dft["mu"])]
-        Path(tmp).write_text("\n".join(lines) + "\n")
-    with atomic_path(truth_path) as tmp:
-        Path(tmp).write_text(json.dumps(data.truth, indent=1, sort_keys=True) + "\n")
+    lines = ["speed_kmh,mu"] + [f"{v:.2f},{m:.3f}" for v, m in zip(data.dft["speed_kmh"], data.dft["mu"])]
+    write_text(dft_path, "\n".join(lines) + "\n")
+    write_text(truth_path, json.dumps(data.truth, indent=1, sort_keys=True) + "\n")
 
 
-def write_campaign(out_dir, generator: str, overrides: dict | None = None, truth_dir=None,
-                   progress=None) -> pd.DataFrame:
+def write_campaign(
+    out_dir, generator: str, overrides: dict | None = None, truth_dir=None, progress=None
+) -> pd.DataFrame:
     """Generate and write a whole campaign into ``out_dir`` (sites.csv, scans/, dft/) and the truth JSONs into
     ``truth_dir`` (default ``<out_dir>-truth`` beside it). Returns the design table."""
     cfg = generator_config(generator, overrides)
@@ -229,17 +315,26 @@ def write_campaign(out_dir, generator: str, overrides: dict | None = None, truth
     design = design_campaign(cfg)
     for n, (_, row) in enumerate(design.iterrows(), 1):
         data = generate_site(row, cfg)
-        write_site(data, out / "scans" / f"{row['site']}.x3p", out / "dft" / f"{row['site']}.csv",
-                   truth_dir / f"{row['site']}.json", cfg["scanner"]["z_step_mm"])
+        write_site(
+            data,
+            out / "scans" / f"{row['site']}.x3p",
+            out / "dft" / f"{row['site']}.csv",
+            truth_dir / f"{row['site']}.json",
+            cfg["scanner"]["z_step_mm"],
+        )
         if progress is not None:
             progress(n)
-    sites = pd.DataFrame({"site": design["site"], "section": design["section"],
-                          "scan": [f"scans/{s}.x3p" for s in design["site"]],
-                          "dft": [f"dft/{s}.csv" for s in design["site"]],
-                          "temperature_c": design["temperature_c"]})
+    sites = pd.DataFrame(
+        {
+            "site": design["site"],
+            "section": design["section"],
+            "scan": [f"scans/{s}.x3p" for s in design["site"]],
+            "dft": [f"dft/{s}.csv" for s in design["site"]],
+            "temperature_c": design["temperature_c"],
+        }
+    )
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "sites.csv") as tmp:
         sites.to_csv(tmp, index=False)
-    with atomic_path(truth_dir / "generator.json") as tmp:
-        Path(tmp).write_text(json.dumps(cfg, indent=1, sort_keys=True) + "\n")
+    write_text(truth_dir / "generator.json", json.dumps(cfg, indent=1, sort_keys=True) + "\n")
     return design

@@ -23,13 +23,13 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 DEFAULTS = {
-    "size_mm": (6.0, 14.0),          # section's nominal chip size: U(low, high)
-    "cover": (0.25, 0.45),           # section's chip area share: U(low, high)
-    "protrusion_mm": (0.7, 2.6),     # section's protrusion scale: U(low, high)
+    "size_mm": (6.0, 14.0),  # section's nominal chip size: U(low, high)
+    "cover": (0.25, 0.45),  # section's chip area share: U(low, high)
+    "protrusion_mm": (0.7, 2.6),  # section's protrusion scale: U(low, high)
     "gap_mm": 0.6,
     "facet_slope": 0.12,
     "flank_slope": 1.5,
-    "edge_round_mm": 0.25,           # Gaussian rounding of the chip shapes (sigma, mm)
+    "edge_round_mm": 0.25,  # Gaussian rounding of the chip shapes (sigma, mm)
     "micro_rms_mm": (0.005, 0.060),  # section's microtexture RMS on chip tops: U(low, high)
     "micro_hurst": 0.8,
     "micro_lmax_mm": 0.5,
@@ -75,7 +75,7 @@ def render(rng: np.random.Generator, shape, dx_mm: float, sec: dict, site: dict,
     w, hgt = cols * dx_mm, rows * dx_mm
     size = sec["size_mm"]
     margin = 2 * size
-    n_seeds = int(rng.poisson((w + 2 * margin) * (hgt + 2 * margin) / size ** 2))
+    n_seeds = int(rng.poisson((w + 2 * margin) * (hgt + 2 * margin) / size**2))
     seeds = np.column_stack([rng.uniform(-margin, w + margin, n_seeds), rng.uniform(-margin, hgt + margin, n_seeds)])
     radius = size * np.sqrt(sec["cover"] / np.pi) * rng.uniform(0.8, 1.2, n_seeds)
     prot = sec["protrusion_mm"] * site["protrusion_factor"] * rng.uniform(0.5, 1.0, n_seeds)
@@ -103,6 +103,9 @@ def render(rng: np.random.Generator, shape, dx_mm: float, sec: dict, site: dict,
     chip = (inside > 0).reshape(shape)
     z[~chip] = 0.0  # the binder stays exactly flat
     np.maximum(z, 0.0, out=z)  # no chip point below the binder
-    info = {"chips": int(np.unique(i[inside > 0]).size), "chip_share": float(chip.mean()),
-            "micro_rms_mm": float(micro_rms)}
+    info = {
+        "chips": int(np.unique(i[inside > 0]).size),
+        "chip_share": float(chip.mean()),
+        "micro_rms_mm": float(micro_rms),
+    }
     return z, info

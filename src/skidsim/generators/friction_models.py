@@ -24,6 +24,8 @@ import numpy as np
 from ..errors import ConfigError
 
 MODELS = ("piarc", "rado", "penn_state")
+#: Hidden texture-and-speed effects a campaign may carry on top of its friction model (:func:`hidden_factor`).
+HIDDEN_EFFECTS = ("squeeze", "drainage")
 
 
 def ifi_speed_constant_kmh(mpd_mm: float) -> float:
@@ -56,7 +58,7 @@ def mu_piarc(v_kmh, mu20: float, sp_kmh: float) -> np.ndarray:
 
 def mu_rado(v_kmh, mu_peak: float, v_peak_kmh: float, c: float) -> np.ndarray:
     """Rado's model: ``mu_peak exp(-(ln(v / v_peak) / C)^2)``."""
-    return mu_peak * np.exp(-(np.log(np.asarray(v_kmh, float) / v_peak_kmh) / c) ** 2)
+    return mu_peak * np.exp(-((np.log(np.asarray(v_kmh, float) / v_peak_kmh) / c) ** 2))
 
 
 def mu_penn_state(v_kmh, mu0: float, png_pct_per_kmh: float) -> np.ndarray:
@@ -64,8 +66,9 @@ def mu_penn_state(v_kmh, mu0: float, png_pct_per_kmh: float) -> np.ndarray:
     return mu0 * np.exp(-png_pct_per_kmh / 100.0 * np.asarray(v_kmh, float))
 
 
-def model_parameters(model: str, mu20: float, mpd_mm: float, *, sp_factor: float = 1.0,
-                     v_peak_kmh: float = 2.0) -> dict:
+def model_parameters(
+    model: str, mu20: float, mpd_mm: float, *, sp_factor: float = 1.0, v_peak_kmh: float = 2.0
+) -> dict:
     """Parameters of ``model`` whose curve passes through ``mu20`` at 20 km/h, with the speed dependence from
     MPD (mm) through the published relation, scaled by ``sp_factor`` (a section/site random effect on the
     speed constant; 1 = the relation itself)."""
@@ -74,7 +77,7 @@ def model_parameters(model: str, mu20: float, mpd_mm: float, *, sp_factor: float
         return {"mu20": float(mu20), "sp_kmh": float(sp)}
     if model == "rado":
         c = rado_shape_from_sp(sp, v_peak_kmh)
-        peak = mu20 / float(np.exp(-(np.log(20.0 / v_peak_kmh) / c) ** 2))
+        peak = mu20 / float(np.exp(-((np.log(20.0 / v_peak_kmh) / c) ** 2)))
         return {"mu_peak": float(peak), "v_peak_kmh": float(v_peak_kmh), "c": c, "sp_kmh": float(sp)}
     if model == "penn_state":
         png = penn_state_png(mpd_mm) / sp_factor
@@ -91,3 +94,23 @@ def evaluate(model: str, params: dict, v_kmh) -> np.ndarray:
     if model == "penn_state":
         return mu_penn_state(v_kmh, params["mu0"], params["png_pct_per_kmh"])
     raise ConfigError(f"friction model: expected one of {', '.join(MODELS)}, got {model!r}")
+
+
+def hidden_factor(effect: str | None, kappa: float, sp_kmh: float, v_kmh) -> np.ndarray:
+    """Multiplier on mu of a hidden effect that rides on texture (through the site's speed constant ``sp_kmh``,
+    km/h, from MPD) and speed ``v_kmh`` (km/h); 1 at 20 km/h, where the level is anchored:
+
+    * ``"squeeze"`` (partial hydroplaning: the water film squeezed out of the contact in less time at speed,
+      more so on shallow texture): ``max(0.05, 1 - kappa (v^2 - 20^2) / Sp^2)``;
+    * ``"drainage"`` (an extra exponential loss, faster on shallow texture): ``exp(-kappa (v - 20) / Sp)``;
+    * ``None``: 1 (no effect).
+
+    ``kappa`` dimensionless, >= 0."""
+    v = np.asarray(v_kmh, float)
+    if effect is None or kappa == 0.0:
+        return np.ones_like(v)
+    if effect == "squeeze":
+        return np.maximum(0.05, 1.0 - kappa * (v * v - 400.0) / sp_kmh**2)
+    if effect == "drainage":
+        return np.exp(-kappa * (v - 20.0) / sp_kmh)
+    raise ConfigError(f"friction hidden_effect: expected null or one of {', '.join(HIDDEN_EFFECTS)}, got {effect!r}")

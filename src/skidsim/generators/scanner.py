@@ -22,8 +22,14 @@ def tilt(h: np.ndarray, rng: np.random.Generator, dx_mm: float, max_slope: float
     return h + plane, {"tilt_slope": slope, "tilt_angle_rad": angle}
 
 
-def dropouts(h: np.ndarray, rng: np.random.Generator, dx_mm: float, fraction: float,
-             radius_mm: tuple[float, float], low_quantile: float) -> tuple:
+def dropouts(
+    h: np.ndarray,
+    rng: np.random.Generator,
+    dx_mm: float,
+    fraction: float,
+    radius_mm: tuple[float, float],
+    low_quantile: float,
+) -> tuple:
     """Set ``round(fraction x n)`` points to NaN in discs of radius U(radius_mm) centred on points among the lowest
     ``low_quantile`` of heights (occlusion in voids); the last disc is trimmed to the exact count."""
     out = h.copy()

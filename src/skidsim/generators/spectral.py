@@ -17,13 +17,13 @@ from scipy import fft as sfft
 from scipy.signal import fftconvolve
 
 DEFAULTS = {
-    "corr_mm": (2.0, 6.0),              # section's correlation length along x: U(low, high)
-    "aspect": (0.6, 1.6),               # section's ly / lx: U(low, high)
+    "corr_mm": (2.0, 6.0),  # section's correlation length along x: U(low, high)
+    "aspect": (0.6, 1.6),  # section's ly / lx: U(low, high)
     "hurst": 0.8,
     "macro_cut_mm": 2.0,
-    "skew_sigma": (0.3, 0.7),           # section's log-normal sigma of the marginal: U(low, high)
-    "macro_sq_mm": (0.2, 1.2),          # section's macro RMS: U(low, high)
-    "micro_rms_mm": (0.005, 0.060),     # section's micro RMS: U(low, high)
+    "skew_sigma": (0.3, 0.7),  # section's log-normal sigma of the marginal: U(low, high)
+    "macro_sq_mm": (0.2, 1.2),  # section's macro RMS: U(low, high)
+    "micro_rms_mm": (0.005, 0.060),  # section's micro RMS: U(low, high)
     "grain_density_per_mm2": 10.0,
     "grain_radius_mm": 0.15,
 }
@@ -34,8 +34,9 @@ def section_draws(rng: np.random.Generator, c: dict) -> dict:
     return {k: float(rng.uniform(*c[k])) for k in ("corr_mm", "aspect", "skew_sigma", "macro_sq_mm", "micro_rms_mm")}
 
 
-def gaussian_field(rng: np.random.Generator, shape, dx_mm: float, lx_mm: float, ly_mm: float, hurst: float,
-                   cut_mm: float) -> np.ndarray:
+def gaussian_field(
+    rng: np.random.Generator, shape, dx_mm: float, lx_mm: float, ly_mm: float, hurst: float, cut_mm: float
+) -> np.ndarray:
     """Zero-mean unit-variance Gaussian field with the spectrum of the module docstring (periodic, by FFT)."""
     rows, cols = shape
     qx = 2 * np.pi * sfft.rfftfreq(cols, dx_mm)
@@ -54,8 +55,8 @@ def sand_grains(rng: np.random.Generator, shape, dx_mm: float, density_per_mm2: 
     """Zero-mean unit-RMS shot noise of spherical caps (see the module docstring)."""
     counts = rng.poisson(density_per_mm2 * dx_mm * dx_mm, size=shape).astype(float)
     k = max(int(np.ceil(radius_mm / dx_mm)), 1)
-    ii, jj = np.mgrid[-k:k + 1, -k:k + 1] * dx_mm
-    cap = np.sqrt(np.clip(radius_mm ** 2 - ii ** 2 - jj ** 2, 0.0, None))
+    ii, jj = np.mgrid[-k : k + 1, -k : k + 1] * dx_mm
+    cap = np.sqrt(np.clip(radius_mm**2 - ii**2 - jj**2, 0.0, None))
     z = fftconvolve(counts, cap, mode="same")
     z -= z.mean()
     sd = z.std()

@@ -35,29 +35,45 @@ def plot_figure10(df: pd.DataFrame, path: str | Path) -> None:
     pad = 0.05 * max(hi - lo, 0.05)
     lim = (max(lo - pad, 0.0), hi + pad)
     with figure(path, ncols=2, figsize=(9.0, 4.2)) as (fig, axes):
-        for ax, kind, title in zip(axes, ("calibration", "validation"),
-                                   ("(a) calibration speeds 20/40/60 km/h", "(b) validation speeds 30/50/70 km/h")):
+        for ax, kind, title in zip(
+            axes,
+            ("calibration", "validation"),
+            ("(a) calibration speeds 20/40/60 km/h", "(b) validation speeds 30/50/70 km/h"),
+        ):
             sub = df[df["kind"] == kind]
             ax.plot(lim, lim, color="0.5", lw=1, ls="--", label="1:1")
             for method in sorted(sub["method"].unique()):
                 g = sub[sub["method"] == method]
                 st = fit_statistics(g["sn_sim"], g["mu_measured"])
-                ax.scatter(g["mu_measured"], g["sn_sim"], s=22, alpha=0.8,
-                           marker=_MARKERS.get(method, "^"), color=_COLORS.get(method, None),
-                           label=f"{_LABELS.get(method, method)}: R$^2$={st['r2']:.2f}, RMSE={st['rmse']:.3f}")
+                ax.scatter(
+                    g["mu_measured"],
+                    g["sn_sim"],
+                    s=22,
+                    alpha=0.8,
+                    marker=_MARKERS.get(method, "^"),
+                    color=_COLORS.get(method, None),
+                    label=f"{_LABELS.get(method, method)}: R$^2$={st['r2']:.2f}, RMSE={st['rmse']:.3f}",
+                )
             ax.set_xlim(lim)
             ax.set_ylim(lim)
             ax.set_aspect("equal")
             ax.set_xlabel("measured DFT friction coefficient (-)")
-            ax.set_ylabel("simulated SN or PIARC/IFI mu (-)" if "piarc_ifi" in set(df["method"]) else
-                          "simulated SN (-)")
+            ax.set_ylabel(
+                "simulated SN or PIARC/IFI mu (-)" if "piarc_ifi" in set(df["method"]) else "simulated SN (-)"
+            )
             ax.set_title(title)
             ax.legend(loc="upper left")
 
 
-def plot_calibration_curves(results: Mapping[str, Mapping[str, CalibrationResult]], measured: Mapping[str, object],
-                            path: str | Path, *, runs: Mapping[str, Mapping[str, pd.DataFrame]] | None = None,
-                            ncols: int = 3, speed_range_kmh: tuple[float, float] = (0.0, 90.0)) -> None:
+def plot_calibration_curves(
+    results: Mapping[str, Mapping[str, CalibrationResult]],
+    measured: Mapping[str, object],
+    path: str | Path,
+    *,
+    runs: Mapping[str, Mapping[str, pd.DataFrame]] | None = None,
+    ncols: int = 3,
+    speed_range_kmh: tuple[float, float] = (0.0, 90.0),
+) -> None:
     """Small multiples, one panel per site: measured DFT trace, both calibrated laws mu(v), and (if ``runs``
     is given, :func:`skidsim.calibration.simulate_speeds` output per site and method) the FE-simulated SN
     at the simulated speeds as markers. Speed axis in km/h.
@@ -77,8 +93,7 @@ def plot_calibration_curves(results: Mapping[str, Mapping[str, CalibrationResult
             for method, res in results[site].items():
                 c = COLORS.get(method, None)
                 p = res.params
-                ax.plot(v, p.mu_kmh(v), color=c, lw=1.4,
-                        label=f"{method}: {p.mu_s:.2f}/{p.mu_k:.2f}/{p.alpha:.3f}")
+                ax.plot(v, p.mu_kmh(v), color=c, lw=1.4, label=f"{method}: {p.mu_s:.2f}/{p.mu_k:.2f}/{p.alpha:.3f}")
                 if runs is not None and site in runs and method in runs[site]:
                     r = runs[site][method]
                     ax.plot(r["speed_kmh"], r["sn_sim"], _MARKERS.get(method, "^"), color=c, mfc="none", ms=5)
@@ -117,8 +132,15 @@ def plot_ifi_comparison(rows: pd.DataFrame, stats: pd.DataFrame, path: str | Pat
         for m in models:
             g = val[val["method"] == m]
             st = fit_statistics(g["sn_sim"], g["mu_measured"])
-            ax.scatter(g["mu_measured"], g["sn_sim"], s=22, alpha=0.8, marker=markers.get(m, "^"),
-                       color=colors.get(m), label=f"{labels.get(m, m)}: R$^2$={st['r2']:.2f}, RMSE={st['rmse']:.3f}")
+            ax.scatter(
+                g["mu_measured"],
+                g["sn_sim"],
+                s=22,
+                alpha=0.8,
+                marker=markers.get(m, "^"),
+                color=colors.get(m),
+                label=f"{labels.get(m, m)}: R$^2$={st['r2']:.2f}, RMSE={st['rmse']:.3f}",
+            )
         ax.set_xlim(lim)
         ax.set_ylim(lim)
         ax.set_aspect("equal")
@@ -131,8 +153,13 @@ def plot_ifi_comparison(rows: pd.DataFrame, stats: pd.DataFrame, path: str | Pat
         x = np.arange(len(per))
         width = 0.8 / max(len(models), 1)
         for i, m in enumerate(models):
-            ax.bar(x + (i - (len(models) - 1) / 2) * width, per[f"{m}_rmse"].to_numpy(float), width,
-                   color=colors.get(m), label=labels.get(m, m))
+            ax.bar(
+                x + (i - (len(models) - 1) / 2) * width,
+                per[f"{m}_rmse"].to_numpy(float),
+                width,
+                color=colors.get(m),
+                label=labels.get(m, m),
+            )
         ax.set_xticks(x, [f"{v} km/h" for v in per["speed_kmh"]])
         ax.set_ylabel("RMSE of mu (-)")
         ax.set_title("(b) RMSE per validation speed")

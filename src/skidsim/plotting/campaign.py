@@ -23,8 +23,9 @@ def plot_synthetic_site(site_data, path: str | Path | None = None, *, max_pixels
     h = s.heights[::k, ::k]
     with figure(path, ncols=2, figsize=(10.0, 4.0)) as (fig, (ax0, ax1)):
         lo, hi = np.nanpercentile(h, [1, 99.5])
-        im = ax0.imshow(h, origin="lower", extent=(0, s.width_mm, 0, s.height_mm), vmin=lo, vmax=hi,
-                        interpolation="nearest")
+        im = ax0.imshow(
+            h, origin="lower", extent=(0, s.width_mm, 0, s.height_mm), vmin=lo, vmax=hi, interpolation="nearest"
+        )
         fig.colorbar(im, ax=ax0, label="height, mm")
         ax0.set_xlabel("x (sliding direction), mm")
         ax0.set_ylabel("y, mm")
@@ -33,8 +34,14 @@ def plot_synthetic_site(site_data, path: str | Path | None = None, *, max_pixels
         ax0.grid(False)
         v = np.linspace(0.0, max(90.0, float(site_data.dft["speed_kmh"].max())), 200)
         steps = _truth.mu_steps(v, tr)
-        ax1.plot(site_data.dft["speed_kmh"], site_data.dft["mu"], ".", ms=3, color=COLORS["measured"],
-                 label="DFT trace (synthetic)")
+        ax1.plot(
+            site_data.dft["speed_kmh"],
+            site_data.dft["mu"],
+            ".",
+            ms=3,
+            color=COLORS["measured"],
+            label="DFT trace (synthetic)",
+        )
         ax1.plot(v, steps["base"], "--", color=COLORS["study"], label="base (exponential decay)")
         for name in _truth.EFFECT_ORDER:
             if tr["effects"][name]["enabled"] and not np.allclose(steps[name], steps["total"]):

@@ -1,4 +1,4 @@
-"""Figures of the model criticism (skidsim.diagnosis): residuals against the named variable, residuals over
+"""Figures of the model criticism (skidsim.criticism): residuals against the named variable, residuals over
 speed, predictions before/after the extension. Each function writes one PNG atomically and returns its path."""
 
 from __future__ import annotations
@@ -56,8 +56,7 @@ def plot_residuals_vs_variable(residuals: pd.DataFrame, covariates: pd.DataFrame
                 labels = sorted(x.astype(str).unique())
                 for k, lab in enumerate(labels):
                     yy = y[x.astype(str) == lab].to_numpy(float)
-                    ax.scatter(np.full(len(yy), k) + np.linspace(-0.12, 0.12, len(yy)), yy, s=18,
-                               color=COLORS["ours"])
+                    ax.scatter(np.full(len(yy), k) + np.linspace(-0.12, 0.12, len(yy)), yy, s=18, color=COLORS["ours"])
                     ax.plot([k - 0.25, k + 0.25], [np.nanmean(yy)] * 2, color=COLORS["study"], lw=2)
                 ax.set_xticks(range(len(labels)), labels, rotation=45 if len(labels) > 6 else 0)
             ax.axhline(0, color="k", lw=0.8)
@@ -68,7 +67,7 @@ def plot_residuals_vs_variable(residuals: pd.DataFrame, covariates: pd.DataFrame
 
 
 def plot_added_variable(av: pd.DataFrame, cause: dict, path) -> Path:
-    """Added-variable plot of a texture-adjusted cause (``skidsim.diagnosis.added_variable``): measured site mean
+    """Added-variable plot of a texture-adjusted cause (``skidsim.criticism.added_variable``): measured site mean
     (mu) or speed slope (mu per 10 km/h) against the covariate, both net of the texture PCs; the least-squares
     line's slope is the partial effect."""
     x = av["covariate_adj"].to_numpy(float)
@@ -79,8 +78,7 @@ def plot_added_variable(av: pd.DataFrame, cause: dict, path) -> Path:
         if len(x) > 2 and np.ptp(x) > 0:
             c = np.polyfit(x, y, 1)
             xs = np.linspace(x.min(), x.max(), 20)
-            ax.plot(xs, np.polyval(c, xs), color=COLORS["study"], lw=1.2,
-                    label=f"partial slope {c[0]:.3g} per unit")
+            ax.plot(xs, np.polyval(c, xs), color=COLORS["study"], lw=1.2, label=f"partial slope {c[0]:.3g} per unit")
             ax.legend()
         ax.axhline(0, color="k", lw=0.8)
         k = cause["texture_pcs"]
@@ -100,8 +98,14 @@ def plot_residuals_by_speed(residuals: pd.DataFrame, path) -> Path:
             for kind in ("trace", "calibration", "validation"):
                 g = r[r["kind"] == kind]
                 if len(g):
-                    ax.scatter(g["speed_kmh"], g["residual"], s=6 if kind == "trace" else 14,
-                               color=colors[kind], alpha=0.6, label=kind)
+                    ax.scatter(
+                        g["speed_kmh"],
+                        g["residual"],
+                        s=6 if kind == "trace" else 14,
+                        color=colors[kind],
+                        alpha=0.6,
+                        label=kind,
+                    )
             ax.axhline(0, color="k", lw=0.8)
             ax.set_xlabel("speed (km/h)")
             ax.set_ylabel("residual measured - model (mu)")
@@ -132,19 +136,23 @@ def plot_before_after(predictions: pd.DataFrame, path) -> Path:
 
 
 def diagnosis_figures(result, out_dir) -> dict:
-    """All figures of a :class:`skidsim.diagnosis.DiagnosisResult` into ``out_dir``; returns {caption: path}."""
+    """All figures of a :class:`skidsim.criticism.DiagnosisResult` into ``out_dir``; returns {caption: path}."""
     out = Path(out_dir)
     figs = {}
-    figs["Residuals against speed at each level"] = plot_residuals_by_speed(result.residuals,
-                                                                             out / "residuals_by_speed.png")
+    figs["Residuals against speed at each level"] = plot_residuals_by_speed(
+        result.residuals, out / "residuals_by_speed.png"
+    )
     if result.named is not None:
         c = result.named.as_dict()
         figs[f"Residuals against the named variable {c['variable']}"] = plot_residuals_vs_variable(
-            result.residuals, result.covariates, c, out / "residuals_vs_cause.png")
+            result.residuals, result.covariates, c, out / "residuals_vs_cause.png"
+        )
         if len(result.added_variable):
-            figs[f"Measured friction against {c['variable']}, both net of the texture (added-variable plot)"] = \
+            figs[f"Measured friction against {c['variable']}, both net of the texture (added-variable plot)"] = (
                 plot_added_variable(result.added_variable, c, out / "added_variable.png")
+            )
     if len(result.predictions):
         figs["Measured against model before and after the extension (held-out data)"] = plot_before_after(
-            result.predictions, out / "before_after.png")
+            result.predictions, out / "before_after.png"
+        )
     return figs

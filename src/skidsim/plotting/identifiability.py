@@ -15,7 +15,7 @@ _PANELS = (("mu_s", "mu_s (-)"), ("mu_k", "mu_k (-)"), ("alpha", "alpha (s/m)"))
 def plot_identifiability(table: pd.DataFrame, path: str | Path, *, bounds: dict | None = None) -> None:
     """Three panels (mu_s, mu_k, alpha): per site (rows) and method the calibrated value (marker) and the 95 %
     profile-likelihood interval (bar; dotted where it runs to a bound, i.e. not bounded within the bounds); a
-    red marker for a site with a flag. ``table``: rows of :func:`skidsim.identifiability.table_row`."""
+    red marker for a site with a flag. ``table``: rows of :func:`skidsim.calibration.identifiability.table_row`."""
     for col in ("site", "method", "flags", *(f"{p}_{s}" for p, _ in _PANELS for s in ("lower", "upper", "open"))):
         if col not in table.columns:
             raise ValueError(f"plot_identifiability: column {col!r} missing; expected identifiability.csv rows")
@@ -35,14 +35,26 @@ def plot_identifiability(table: pd.DataFrame, path: str | Path, *, bounds: dict 
                 opened = g[f"{p}_open"].fillna("").astype(str).to_numpy()
                 for yi, a, b, o in zip(y, lo, hi, opened):
                     if np.isfinite(a) and np.isfinite(b):
-                        ax.plot([a, b], [yi, yi], color=COLORS.get(m, "0.3"), lw=2.0,
-                                ls=":" if o else "-", alpha=0.85)
+                        ax.plot([a, b], [yi, yi], color=COLORS.get(m, "0.3"), lw=2.0, ls=":" if o else "-", alpha=0.85)
                 flagged = g["flags"].fillna("").astype(str).str.len().to_numpy() > 0
                 val = g[value_col[p]].to_numpy(float)
-                ax.scatter(val[~flagged], y[~flagged], s=16, color=COLORS.get(m, "0.3"), zorder=3,
-                           label=f"{m}" if p == "mu_s" else None)
-                ax.scatter(val[flagged], y[flagged], s=16, color="#e7298a", marker="x", zorder=3,
-                           label=f"{m}, flagged" if p == "mu_s" and flagged.any() else None)
+                ax.scatter(
+                    val[~flagged],
+                    y[~flagged],
+                    s=16,
+                    color=COLORS.get(m, "0.3"),
+                    zorder=3,
+                    label=f"{m}" if p == "mu_s" else None,
+                )
+                ax.scatter(
+                    val[flagged],
+                    y[flagged],
+                    s=16,
+                    color="#e7298a",
+                    marker="x",
+                    zorder=3,
+                    label=f"{m}, flagged" if p == "mu_s" and flagged.any() else None,
+                )
             if bounds and p in bounds:
                 for b in bounds[p]:
                     ax.axvline(float(b), color="0.6", lw=0.8, ls="--")

@@ -16,8 +16,22 @@ from matplotlib.ticker import MaxNLocator
 from skidsim.errors import InputError
 from skidsim.plotting.style import COLORS, figure
 
-_MODEL_COLORS = ["#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#666666",
-                 "#1f78b4", "#b15928", "#6a3d9a", "#b2df8a", "#fb9a99", "#000000"]
+_MODEL_COLORS = [
+    "#1b9e77",
+    "#d95f02",
+    "#7570b3",
+    "#e7298a",
+    "#66a61e",
+    "#e6ab02",
+    "#a6761d",
+    "#666666",
+    "#1f78b4",
+    "#b15928",
+    "#6a3d9a",
+    "#b2df8a",
+    "#fb9a99",
+    "#000000",
+]
 
 
 def _need(df: pd.DataFrame, cols, what: str) -> None:
@@ -49,17 +63,32 @@ def plot_figure11(table: pd.DataFrame, path: str | Path) -> Path:
             x = np.array([pos[str(s)] for s in t["site"]])
             m, p = t["measured"].to_numpy(float), t["predicted"].to_numpy(float)
             inside = np.abs(p - m) <= 0.10 * np.abs(m)
-            ax.errorbar(x - 0.1, m, yerr=0.10 * np.abs(m), fmt="s", color=COLORS["measured"], ms=4, capsize=2,
-                        label="measured DFT (+-10 %)")
+            ax.errorbar(
+                x - 0.1,
+                m,
+                yerr=0.10 * np.abs(m),
+                fmt="s",
+                color=COLORS["measured"],
+                ms=4,
+                capsize=2,
+                label="measured DFT (+-10 %)",
+            )
             ax.plot(x[inside] + 0.1, p[inside], "o", color=COLORS["ours"], ms=5, label="predicted, within 10 %")
-            ax.plot(x[~inside] + 0.1, p[~inside], "o", mfc="none", color=COLORS["study"], ms=5,
-                    label="predicted, outside 10 %")
+            ax.plot(
+                x[~inside] + 0.1,
+                p[~inside],
+                "o",
+                mfc="none",
+                color=COLORS["study"],
+                ms=5,
+                label="predicted, outside 10 %",
+            )
             ax.set_title(f"{v:g} km/h: {int(inside.sum())}/{len(t)} within 10 %")
             ax.set_xticks(range(len(sites)))
             ax.set_xticklabels(sites, rotation=60, fontsize=7)
             ax.set_ylim(lo - pad, hi + pad)
             ax.set_ylabel("DFT friction coefficient (-)")
-        for ax in axes.ravel()[len(speeds):]:
+        for ax in axes.ravel()[len(speeds) :]:
             ax.set_visible(False)
         axes.ravel()[0].legend(loc="best", fontsize=7)
     return Path(path)
@@ -79,8 +108,13 @@ def plot_cv_comparison(cv_table: pd.DataFrame, path: str | Path) -> Path:
         for i, m in enumerate(models):
             t = cv_table[(cv_table["model"] == m) & cv_table["quantity"].isin(params)].set_index("quantity")
             r2 = [float(t.loc[q, "r2"]) if q in t.index else np.nan for q in params]
-            ax.bar(np.arange(len(params)) + (i - (len(models) - 1) / 2) * w, r2, width=w, label=m,
-                   color=_MODEL_COLORS[i % len(_MODEL_COLORS)])
+            ax.bar(
+                np.arange(len(params)) + (i - (len(models) - 1) / 2) * w,
+                r2,
+                width=w,
+                label=m,
+                color=_MODEL_COLORS[i % len(_MODEL_COLORS)],
+            )
         ax.axhline(0.0, color="k", lw=0.8)
         ax.set_xticks(range(len(params)))
         ax.set_xticklabels([{"mu_s": "mu_s (-)", "mu_k": "mu_k (-)", "alpha": "alpha (s/m)"}[q] for q in params])
@@ -112,8 +146,13 @@ def plot_table6(coeffs: pd.DataFrame, path: str | Path) -> Path:
     if not targets or not bands:
         raise InputError("table 6", "at least one feature coefficient", column="variable", got=0)
     nper = max(int((t["band"] == b).groupby(t["target"]).sum().max()) for b in bands)
-    with figure(path, nrows=len(targets), ncols=len(bands), squeeze=False,
-                figsize=(2.6 * len(bands), max(2.2, 0.16 * nper + 1.0) * len(targets))) as (fig, axes):
+    with figure(
+        path,
+        nrows=len(targets),
+        ncols=len(bands),
+        squeeze=False,
+        figsize=(2.6 * len(bands), max(2.2, 0.16 * nper + 1.0) * len(targets)),
+    ) as (fig, axes):
         for i, tg in enumerate(targets):
             for j, b in enumerate(bands):
                 ax = axes[i, j]
@@ -162,8 +201,13 @@ def plot_prediction_skill(skill: pd.DataFrame, path: str | Path) -> Path:
         for role, style in (("mean", ":"), ("baseline", "--")):
             ref = t[roles.str.contains(role)]
             if len(ref):
-                ax.axvline(float(ref["r2"].iloc[0]), color="k", ls=style, lw=1.0,
-                           label=f"{role}: {ref['model'].iloc[0]} ({float(ref['r2'].iloc[0]):.3f})")
+                ax.axvline(
+                    float(ref["r2"].iloc[0]),
+                    color="k",
+                    ls=style,
+                    lw=1.0,
+                    label=f"{role}: {ref['model'].iloc[0]} ({float(ref['r2'].iloc[0]):.3f})",
+                )
         ax.axvline(0.0, color="k", lw=0.6)
         ax.set_yticks(y)
         ax.set_yticklabels([f"{m} [{r}]" if r else m for m, r in zip(t["model"], roles)], fontsize=7)
@@ -171,9 +215,14 @@ def plot_prediction_skill(skill: pd.DataFrame, path: str | Path) -> Path:
         ax.set_xlabel("section-grouped CV R-squared of the DFT, pooled over speeds (-)")
         ax.legend(fontsize=7, loc="lower right")
         if warning:
-            ax.set_title("WARNING: the chosen model does not beat the mean and the baseline", color="#b2182b",
-                         fontsize=9, fontweight="bold")
+            ax.set_title(
+                "WARNING: the chosen model does not beat the mean and the baseline",
+                color="#b2182b",
+                fontsize=9,
+                fontweight="bold",
+            )
         else:
-            ax.set_title("Prediction skill at unseen sections: the chosen model beats the mean and the baseline",
-                         fontsize=9)
+            ax.set_title(
+                "Prediction skill at unseen sections: the chosen model beats the mean and the baseline", fontsize=9
+            )
     return Path(path)

@@ -22,14 +22,20 @@ def _image(ax, s: Surface, title: str, max_px: int = 600, detail_mm: float | Non
     if detail_mm is not None:
         nx, ny = int(round(detail_mm / s.dx)), int(round(detail_mm / s.dy))
         i0, j0 = max(0, (h.shape[0] - ny) // 2), max(0, (h.shape[1] - nx) // 2)
-        h = h[i0:i0 + ny, j0:j0 + nx]
+        h = h[i0 : i0 + ny, j0 : j0 + nx]
         x0, y0 = j0 * s.dx, i0 * s.dy
     step = max(1, int(np.ceil(max(h.shape) / max_px)))  # decimate for the figure only
     img = h[::step, ::step]
     finite = img[np.isfinite(img)]
-    lo, hi = (np.quantile(finite, [0.005, 0.995]) if finite.size else (None, None))
-    im = ax.imshow(img, origin="lower", aspect="equal", vmin=lo, vmax=hi,
-                   extent=(x0, x0 + (h.shape[1] - 1) * s.dx, y0, y0 + (h.shape[0] - 1) * s.dy))
+    lo, hi = np.quantile(finite, [0.005, 0.995]) if finite.size else (None, None)
+    im = ax.imshow(
+        img,
+        origin="lower",
+        aspect="equal",
+        vmin=lo,
+        vmax=hi,
+        extent=(x0, x0 + (h.shape[1] - 1) * s.dx, y0, y0 + (h.shape[0] - 1) * s.dy),
+    )
     ax.set_title(title)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
@@ -40,14 +46,22 @@ def _image(ax, s: Surface, title: str, max_px: int = 600, detail_mm: float | Non
 def plot_figure7(raw: Surface, despeckled: Surface, macro: Surface, micro: Surface, path: str | Path) -> None:
     """Four range images like the study's Figure 7: scan, despeckled, macrotexture, microtexture (mm)."""
     with figure(path, nrows=2, ncols=2, figsize=(10.0, 8.0)) as (fig, axes):
-        for ax, s, t in zip(axes.ravel(), (raw, despeckled, macro, micro),
-                            ("range image (as scanned)", "despeckled", "macrotexture 0.5-50 mm",
-                             "microtexture < 0.5 mm (10 x 10 mm detail)")):
+        for ax, s, t in zip(
+            axes.ravel(),
+            (raw, despeckled, macro, micro),
+            (
+                "range image (as scanned)",
+                "despeckled",
+                "macrotexture 0.5-50 mm",
+                "microtexture < 0.5 mm (10 x 10 mm detail)",
+            ),
+        ):
             _image(ax, s, t, detail_mm=10.0 if s is micro else None)
 
 
-def plot_despeckle_comparison(profile_mm: np.ndarray, dx_mm: float, results: dict[str, np.ndarray],
-                              path: str | Path, title: str = "") -> None:
+def plot_despeckle_comparison(
+    profile_mm: np.ndarray, dx_mm: float, results: dict[str, np.ndarray], path: str | Path, title: str = ""
+) -> None:
     """One profile (mm) and its despeckled versions ``{rule: profile}`` on a common x axis (mm)."""
     x = np.arange(profile_mm.size) * dx_mm
     colors = ["#d95f02", "#1b9e77", "#7570b3", "#e7298a"]
@@ -62,10 +76,12 @@ def plot_despeckle_comparison(profile_mm: np.ndarray, dx_mm: float, results: dic
         ax.legend(loc="best")
 
 
-def plot_campaign_distributions(campaign_wide: pd.DataFrame, path: str | Path,
-                                parameters: tuple[str, ...] = ("Sq", "Ssk", "Sdr", "Sal", "Sk", "S10z", "Spd",
-                                                               "Vvv"),
-                                bands: tuple[str, ...] = ("macro", "micro")) -> None:
+def plot_campaign_distributions(
+    campaign_wide: pd.DataFrame,
+    path: str | Path,
+    parameters: tuple[str, ...] = ("Sq", "Ssk", "Sdr", "Sal", "Sk", "S10z", "Spd", "Vvv"),
+    bands: tuple[str, ...] = ("macro", "micro"),
+) -> None:
     """Histograms over sites of selected parameters, one panel per parameter, one colour per band."""
     params = [p for p in parameters if any(f"{b}_{p}" in campaign_wide.columns for b in bands)]
     if not params:
@@ -81,7 +97,7 @@ def plot_campaign_distributions(campaign_wide: pd.DataFrame, path: str | Path,
                     ax.hist(v, bins=min(12, max(3, v.size)), alpha=0.6, color=COLORS.get(b), label=b)
             ax.set_title(p)
             ax.set_ylabel("sites")
-        for ax in axes.ravel()[len(params):]:
+        for ax in axes.ravel()[len(params) :]:
             ax.set_visible(False)
         axes.ravel()[0].legend()
 
@@ -113,8 +129,13 @@ def plot_scan_quality(table: pd.DataFrame, limits: dict, path: str | Path) -> No
                 beyond = values > float(lim) if kind == "max" else values < float(lim)
             ax.bar(np.arange(len(sites)), values, color=np.where(beyond, "#d62728", COLORS["ours"]))
             if lim is not None:
-                ax.axhline(float(lim), color="#333333", ls="--", lw=0.9,
-                           label=f"{'most' if kind == 'max' else 'least'} allowed: {float(lim):g}")
+                ax.axhline(
+                    float(lim),
+                    color="#333333",
+                    ls="--",
+                    lw=0.9,
+                    label=f"{'most' if kind == 'max' else 'least'} allowed: {float(lim):g}",
+                )
                 ax.legend(loc="best")
             ax.set_ylabel(label)
             ax.set_xticks(np.arange(len(sites)))
@@ -123,8 +144,11 @@ def plot_scan_quality(table: pd.DataFrame, limits: dict, path: str | Path) -> No
                 if bad:
                     tick.set_color("#d62728")
         n_flag = int(flagged.sum())
-        fig.suptitle(f"Scan quality, {len(sites)} sites: {n_flag} flagged (red names; red bars beyond a limit)"
-                     if n_flag else f"Scan quality, {len(sites)} sites: none beyond the limits")
+        fig.suptitle(
+            f"Scan quality, {len(sites)} sites: {n_flag} flagged (red names; red bars beyond a limit)"
+            if n_flag
+            else f"Scan quality, {len(sites)} sites: none beyond the limits"
+        )
 
 
 def plot_despeckle_flat_binder(cases: list[dict], path: str | Path) -> None:
@@ -140,8 +164,13 @@ def plot_despeckle_flat_binder(cases: list[dict], path: str | Path) -> None:
             x = np.arange(j0, j1) * c["dx_mm"]
             ax.plot(x, c["row"][j0:j1], color=COLORS["measured"], lw=1.6, label="as scanned (with spikes)")
             for name, prof in c["rules"].items():
-                ax.plot(x, prof[j0:j1], color=colors.get(name, "#666666"), lw=0.9,
-                        label=f"{name}: {c['replaced_pct'][name]:.2f} % replaced, MPD {c['mpd_err_pct'][name]:+.1f} %")
+                ax.plot(
+                    x,
+                    prof[j0:j1],
+                    color=colors.get(name, "#666666"),
+                    lw=0.9,
+                    label=f"{name}: {c['replaced_pct'][name]:.2f} % replaced, MPD {c['mpd_err_pct'][name]:+.1f} %",
+                )
             ax.set_title(c["label"])
             ax.set_xlabel("x (mm)")
             ax.set_ylabel("height (mm)")

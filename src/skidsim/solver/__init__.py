@@ -14,6 +14,17 @@ from skidsim.solver.material import RubberMaterial
 from skidsim.solver.results import ENERGY_KEYS, SimulationResult, write_trace_parquet
 from skidsim.solver.surfaces import FlatPlane, RandomTexture, SinusoidalSurface, TiltedPlane
 
-__all__ = ["SolverConfig", "simulate", "SimulationResult", "RubberMaterial", "ENERGY_KEYS", "FlatPlane",
-           "TiltedPlane", "SinusoidalSurface", "RandomTexture", "material_from_config", "max_frequency_power_iteration",
-           "write_trace_parquet"]
+__all__ = [
+    "SolverConfig",
+    "simulate",
+    "SimulationResult",
+    "RubberMaterial",
+    "ENERGY_KEYS",
+    "FlatPlane",
+    "TiltedPlane",
+    "SinusoidalSurface",
+    "RandomTexture",
+    "material_from_config",
+    "max_frequency_power_iteration",
+    "write_trace_parquet",
+]

@@ -10,7 +10,7 @@ All fields are SI or carry their unit in the name. The two presets:
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 
 from skidsim.errors import ConfigError
 
@@ -74,6 +74,25 @@ class SolverConfig:
     Contact: penalty stiffness per bottom node ``penalty_scale * E * A_node / h_z`` (N/m; ``penalty_scale`` 1 is
     the axial stiffness of the first element layer under the node).
 
+    Friction model ``friction_model``: ``"stick_limit"`` (default) caps the friction force of a node at
+    ``m |v_t,trial| / dt`` (the force that stops its predicted tangential velocity within the step) and applies
+    ``mu(s) N`` above it; the cap depends on the nodal mass, so small nodes stick behind asperities and SN falls
+    under mesh refinement below 0.5 mm. ``"penalty"``: an elastic stick regime with tangential penalty stiffness
+    ``friction_stiffness_pa_per_m`` (Pa/m, per unit contact area, times the node's tributary area) and a return
+    mapping onto ``|f_t| <= mu(s) N`` (:mod:`skidsim.solver.contact_friction`); the traction law does not depend
+    on the element size. Default 2e11 Pa/m = E / 0.5 mm: an elastic slip of ~6 um at 1.2 MPa of shear traction.
+    The stable step includes ``k_t / m`` of every bottom node.
+
+    Slide damping ``slide_damping_model``: ``"mass"`` (default) is the ``slide_damping_per_s`` dashpots above.
+    ``"rayleigh"``: ``alpha M + beta K`` with loss factor ``loss_factor`` (tan delta) at both ends of
+    ``loss_band_hz`` (Hz; default 0.2 at 1 kHz and 100 kHz: the loss factor of a filled tread rubber at room
+    temperature in the texture-excited band, rising towards the glass transition above it; docs/solver.md). In
+    between the loss factor dips to 0.04 (at 10 kHz), above 100 kHz it rises with frequency (1.0 at 500 kHz), which
+    damps the node-scale contact vibrations of fine meshes. The mass part acts on the velocity relative to the
+    holder frame, the stiffness part on the deformation rate (``K`` of the long-term modulus); it replaces
+    ``slide_damping_per_s``. The stable step shrinks by ``sqrt(1 + xi^2) - xi`` (``xi`` the damping ratio at the
+    highest frequency): 0.87 on the campaign preset, 0.66 at 0.5 mm, 0.45 at 0.25 mm.
+
     ``blas_threads``: BLAS threads inside :func:`simulate` (via threadpoolctl when installed; ``None`` leaves the
     setting alone). 1 is fastest for the small matrix products here and essential on a busy machine (measured:
     multithreaded OpenBLAS made a 1 mm run 10x slower on 2 shared cores).
@@ -110,13 +129,28 @@ class SolverConfig:
     penalty_scale: float = 1.0
     contact_gap: str = "vertical"
     penalty_length_mm: float | None = None
+    friction_model: str = "stick_limit"
+    friction_stiffness_pa_per_m: float = 2.0e11
+    slide_damping_model: str = "mass"
+    loss_factor: float = 0.2
+    loss_band_hz: tuple[float, float] = (1.0e3, 1.0e5)
     trace_every: int = 1
     vtu_frames: int = 50
     progress_every_s: float = 10.0
 
     def __post_init__(self):
-        positive = ["element_mm", "slider_length_mm", "slider_width_mm", "slider_thickness_mm", "load_n",
-                    "slide_length_mm", "preload_time_s", "penalty_scale", "dt_safety", "progress_every_s"]
+        positive = [
+            "element_mm",
+            "slider_length_mm",
+            "slider_width_mm",
+            "slider_thickness_mm",
+            "load_n",
+            "slide_length_mm",
+            "preload_time_s",
+            "penalty_scale",
+            "dt_safety",
+            "progress_every_s",
+        ]
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ConfigError(f"solver config field '{name}': expected > 0, got {getattr(self, name)!r}")
@@ -130,31 +164,61 @@ class SolverConfig:
         if self.preload_damping_per_s < 0 or self.slide_damping_per_s < 0 or self.holder_damping_per_s < 0:
             raise ConfigError("solver config fields 'preload_damping_per_s'/'slide_damping_per_s': expected >= 0 1/s")
         if self.window_start_mm < 0 or (self.window_end_mm is not None and self.window_end_mm <= self.window_start_mm):
-            raise ConfigError("solver config fields 'window_start_mm'/'window_end_mm': expected 0 <= start < end mm, "
-                              f"got {self.window_start_mm}, {self.window_end_mm}")
+            raise ConfigError(
+                "solver config fields 'window_start_mm'/'window_end_mm': expected 0 <= start < end mm, "
+                f"got {self.window_start_mm}, {self.window_end_mm}"
+            )
         if self.window_start_mm >= self.slide_length_mm:
-            raise ConfigError(f"solver config field 'window_start_mm': expected < slide_length_mm "
-                              f"({self.slide_length_mm}), got {self.window_start_mm}")
+            raise ConfigError(
+                f"solver config field 'window_start_mm': expected < slide_length_mm "
+                f"({self.slide_length_mm}), got {self.window_start_mm}"
+            )
         if int(self.trace_every) < 1 or int(self.vtu_frames) < 1:
             raise ConfigError("solver config fields 'trace_every'/'vtu_frames': expected integers >= 1")
         if self.penalty_length_mm is not None and not self.penalty_length_mm > 0:
-            raise ConfigError(f"solver config field 'penalty_length_mm': expected None or > 0 mm, "
-                              f"got {self.penalty_length_mm!r}")
+            raise ConfigError(
+                f"solver config field 'penalty_length_mm': expected None or > 0 mm, got {self.penalty_length_mm!r}"
+            )
         if self.contact_gap not in ("vertical", "normal"):
-            raise ConfigError(f"solver config field 'contact_gap': expected 'vertical' or 'normal', "
-                              f"got {self.contact_gap!r}")
+            raise ConfigError(
+                f"solver config field 'contact_gap': expected 'vertical' or 'normal', got {self.contact_gap!r}"
+            )
+        if self.friction_model not in ("stick_limit", "penalty"):
+            raise ConfigError(
+                f"solver config field 'friction_model': expected 'stick_limit' or 'penalty', "
+                f"got {self.friction_model!r}"
+            )
+        if not self.friction_stiffness_pa_per_m > 0:
+            raise ConfigError(
+                f"solver config field 'friction_stiffness_pa_per_m': expected > 0 Pa/m, "
+                f"got {self.friction_stiffness_pa_per_m!r}"
+            )
+        if self.slide_damping_model not in ("mass", "rayleigh"):
+            raise ConfigError(
+                f"solver config field 'slide_damping_model': expected 'mass' or 'rayleigh', "
+                f"got {self.slide_damping_model!r}"
+            )
+        if not self.loss_factor > 0:
+            raise ConfigError(f"solver config field 'loss_factor': expected > 0 (tan delta), got {self.loss_factor!r}")
+        band = tuple(float(f) for f in self.loss_band_hz)
+        if len(band) != 2 or not 0 < band[0] <= band[1]:
+            raise ConfigError(
+                f"solver config field 'loss_band_hz': expected two frequencies 0 < f1 <= f2 Hz, "
+                f"got {self.loss_band_hz!r}"
+            )
+        object.__setattr__(self, "loss_band_hz", band)
         if self.edge_margin_mm < 0:
             raise ConfigError(f"solver config field 'edge_margin_mm': expected >= 0 mm, got {self.edge_margin_mm}")
         object.__setattr__(self, "prony_g", tuple(float(g) for g in self.prony_g))
         object.__setattr__(self, "prony_tau_s", tuple(float(t) for t in self.prony_tau_s))
 
     @classmethod
-    def reference(cls, **overrides) -> "SolverConfig":
+    def reference(cls, **overrides) -> SolverConfig:
         """The study's model: 0.5 mm elements, 114.3 mm slide, no mass scaling (the benchmark case)."""
         return cls(**overrides)
 
     @classmethod
-    def campaign(cls, **overrides) -> "SolverConfig":
+    def campaign(cls, **overrides) -> SolverConfig:
         """The calibration-campaign preset (see docs/solver.md for its measured SN error and cost).
 
         1.5 mm elements, the full 114.3 mm slide (window from 5 mm), no mass scaling. Short slides are not
@@ -173,26 +237,63 @@ class SolverConfig:
         (C1-1), -0.3 % (C6-3) against the vertical gap, run time -52 % / -19 % / -23 %; over the 977 FE runs of a
         default reproduction the step count falls by about 30 % (docs/solver.md, "Campaign preset").
         """
-        base = dict(element_mm=1.5, slide_length_mm=114.3, window_start_mm=5.0, mass_scaling=1.0,
-                    contact_gap="normal")
+        base = dict(element_mm=1.5, slide_length_mm=114.3, window_start_mm=5.0, mass_scaling=1.0, contact_gap="normal")
         base.update(overrides)
         return cls(**base)
 
     @classmethod
-    def from_dict(cls, d: dict, *, source: str = "<config>") -> "SolverConfig":
+    def from_dict(cls, d: dict, *, source: str = "<config>") -> SolverConfig:
         """Build from a mapping (e.g. the workflow config's ``solver`` section); unknown keys raise ConfigError."""
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - names)
         if unknown:
             raise ConfigError(f"{source}: unknown solver config field(s) {unknown}; expected some of {sorted(names)}")
         d = dict(d)
-        for key in ("prony_g", "prony_tau_s"):
+        for key in ("prony_g", "prony_tau_s", "loss_band_hz"):
             if key in d and d[key] is not None:
                 d[key] = tuple(d[key])
         return cls(**d)
 
-    def replace(self, **changes) -> "SolverConfig":
+    def replace(self, **changes) -> SolverConfig:
         return replace(self, **changes)
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+#: Presets of the workflow's ``solver.preset`` (``quick``: the campaign preset on a coarser mesh, config/quick.yaml).
+PRESETS = ("campaign", "reference", "quick")
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """The workflow's ``solver:`` section (the defaults of ``config/config.yaml``).
+
+    preset: base :class:`SolverConfig`, one of :data:`PRESETS`; load_n: normal load in N on the one simulated
+    slider (the default is :class:`SolverConfig`'s, ASTM E1911); overrides: any :class:`SolverConfig` field, applied
+    on top of the preset.
+    """
+
+    preset: str = "campaign"
+    load_n: float = SolverConfig.load_n
+    overrides: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.preset not in PRESETS:
+            raise ConfigError(f"solver.preset: expected one of {', '.join(PRESETS)}, got {self.preset!r}")
+        if not (isinstance(self.load_n, (int, float)) and self.load_n > 0):
+            raise ConfigError(f"solver.load_n: expected a load > 0 N, got {self.load_n!r}")
+        if not isinstance(self.overrides, dict):
+            raise ConfigError(f"solver.overrides: expected a mapping of SolverConfig fields, got {self.overrides!r}")
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> SolverOptions:
+        """From the ``solver:`` config block; an unknown key raises :class:`ConfigError`."""
+        d = dict(d or {})
+        names = sorted(f.name for f in fields(cls))
+        unknown = sorted(set(d) - set(names))
+        if unknown:
+            raise ConfigError(f"solver: unknown key(s) {unknown}; expected a subset of {names}")
+        if d.get("overrides") is None:
+            d.pop("overrides", None)
+        return cls(**d)

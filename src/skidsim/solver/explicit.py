@@ -22,6 +22,9 @@ Model (details and conventions in docs/solver.md):
   is at rest), Coulomb bound ``mu(s) N``, regularised near ``s = 0`` by the *stick limit*: the friction force never
   exceeds the force that stops the node's predicted tangential velocity within the step (``m |v_t,trial| / dt``).
   No viscous regularisation, so no extra stiffness and no time-step penalty; sticking is exact.
+  Option ``friction_model = "penalty"``: elastic stick with a tangential penalty per unit contact area and a return
+  mapping onto ``mu(s) N`` (:mod:`skidsim.solver.contact_friction`); its stiffness enters the time-step bound.
+  Option ``slide_damping_model = "rayleigh"``: ``alpha M + beta K`` fitted to a rubber loss factor.
 * **Loading**: the top face is bonded to a rigid holder: its x/y velocities are prescribed (0 during the preload,
   the test speed in x while sliding) and all top nodes share one vertical velocity (a single vertical degree of
   freedom carrying the dead load ``load_n``; the holder's mass is that of the top-face nodes). The holder takes the
@@ -50,6 +53,7 @@ from skidsim.errors import ConfigError
 from skidsim.friction import kmh_to_ms
 from skidsim.slidermesh import SliderMesh
 from skidsim.solver.config import SolverConfig
+from skidsim.solver.contact_friction import damped_step_factor, penalty_friction, rayleigh_coefficients
 from skidsim.solver.kernel import StructuredKernel, to_internal, to_mesh_layout
 from skidsim.solver.material import RubberMaterial, element_matrices, lumped_mass
 from skidsim.solver.results import SimulationResult, VtuSeriesWriter, write_trace_parquet
@@ -66,20 +70,29 @@ PHASES = ("internal_force", "damping_load", "contact", "friction", "update", "ou
 
 def material_from_config(config: SolverConfig) -> RubberMaterial:
     """The :class:`RubberMaterial` of a :class:`SolverConfig`."""
-    return RubberMaterial(config.youngs_modulus_pa, config.poisson, config.density_kg_m3,
-                          config.prony_g, config.prony_tau_s)
+    return RubberMaterial(
+        config.youngs_modulus_pa, config.poisson, config.density_kg_m3, config.prony_g, config.prony_tau_s
+    )
 
 
 def build_kernel(mesh: SliderMesh, material: RubberMaterial) -> StructuredKernel:
     """Slicing kernel with the long-term elastic matrix and the Prony branches of ``material``."""
     k_vol, k_dev = element_matrices(mesh.hx, mesh.hy, mesh.hz)
     k_inf = material.bulk_modulus_pa * k_vol + material.shear_modulus_pa * k_dev
-    return StructuredKernel(mesh, k_inf, k_dev_unit=k_dev, branch_g_pa=material.branch_shear_moduli_pa,
-                            branch_tau_s=material.prony_tau_s)
+    return StructuredKernel(
+        mesh, k_inf, k_dev_unit=k_dev, branch_g_pa=material.branch_shear_moduli_pa, branch_tau_s=material.prony_tau_s
+    )
 
 
-def max_frequency_power_iteration(mesh: SliderMesh, material: RubberMaterial, mass_kg: np.ndarray, *,
-                                  iterations: int = 150, tol: float = 1e-5, seed: int = 0) -> float:
+def max_frequency_power_iteration(
+    mesh: SliderMesh,
+    material: RubberMaterial,
+    mass_kg: np.ndarray,
+    *,
+    iterations: int = 150,
+    tol: float = 1e-5,
+    seed: int = 0,
+) -> float:
     """Highest circular frequency (rad/s) of the free slider, ``sqrt(lambda_max(M^-1/2 K_0 M^-1/2))``.
 
     Power iteration with the instantaneous stiffness K_0 and lumped masses ``mass_kg`` (internal layout
@@ -122,29 +135,57 @@ def _ramp(t, t_ramp):
     return 1.0 if t >= t_ramp else 0.5 * (1.0 - math.cos(math.pi * t / t_ramp))
 
 
-def simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = None, *, y_offset_mm: float = 0.0,
-             progress=None, trace_path: str | Path | None = None, vtu_dir: str | Path | None = None,
-             slope_bound: float | None = None) -> SimulationResult:
+def simulate(
+    pavement,
+    speed_kmh: float,
+    law,
+    config: SolverConfig | None = None,
+    *,
+    y_offset_mm: float = 0.0,
+    progress=None,
+    trace_path: str | Path | None = None,
+    vtu_dir: str | Path | None = None,
+    slope_bound: float | None = None,
+) -> SimulationResult:
     """Simulate one DFT slide of the rubber slider (see :func:`_simulate` for the parameters)."""
     config = SolverConfig.reference() if config is None else config
     limiter = None
     if config.blas_threads is not None:
         try:
             from threadpoolctl import threadpool_limits
+
             limiter = threadpool_limits(limits=int(config.blas_threads), user_api="blas")
         except ImportError:  # pragma: no cover - optional
             limiter = None
     try:
-        return _simulate(pavement, speed_kmh, law, config, y_offset_mm=y_offset_mm, progress=progress,
-                         trace_path=trace_path, vtu_dir=vtu_dir, slope_bound=slope_bound)
+        return _simulate(
+            pavement,
+            speed_kmh,
+            law,
+            config,
+            y_offset_mm=y_offset_mm,
+            progress=progress,
+            trace_path=trace_path,
+            vtu_dir=vtu_dir,
+            slope_bound=slope_bound,
+        )
     finally:
         if limiter is not None:
             limiter.restore_original_limits()
 
 
-def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = None, *, y_offset_mm: float = 0.0,
-              progress=None, trace_path: str | Path | None = None, vtu_dir: str | Path | None = None,
-              slope_bound: float | None = None) -> SimulationResult:
+def _simulate(
+    pavement,
+    speed_kmh: float,
+    law,
+    config: SolverConfig | None = None,
+    *,
+    y_offset_mm: float = 0.0,
+    progress=None,
+    trace_path: str | Path | None = None,
+    vtu_dir: str | Path | None = None,
+    slope_bound: float | None = None,
+) -> SimulationResult:
     """Simulate one DFT slide of the rubber slider over ``pavement`` at ``speed_kmh`` (km/h).
 
     Parameters
@@ -170,33 +211,41 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     ext = pavement_extent_m(pavement)
 
     # ---- geometry and placement -------------------------------------------------------------------------------
-    L, W, T = (config.slider_length_mm * 1e-3, config.slider_width_mm * 1e-3, config.slider_thickness_mm * 1e-3)
+    L, W = config.slider_length_mm * 1e-3, config.slider_width_mm * 1e-3
     margin = config.edge_margin_mm * 1e-3
     x0 = ext[0] + margin
     y_c = 0.5 * (ext[2] + ext[3]) + y_offset_mm * 1e-3
     y0 = y_c - 0.5 * W
     if y0 < ext[2] - 1e-12 or y0 + W > ext[3] + 1e-12:
-        raise ConfigError(f"simulate: 'y_offset_mm' = {y_offset_mm} puts the {config.slider_width_mm} mm wide slider "
-                          f"outside the pavement strip y in [{ext[2] * 1e3:.3f}, {ext[3] * 1e3:.3f}] mm")
+        raise ConfigError(
+            f"simulate: 'y_offset_mm' = {y_offset_mm} puts the {config.slider_width_mm} mm wide slider "
+            f"outside the pavement strip y in [{ext[2] * 1e3:.3f}, {ext[3] * 1e3:.3f}] mm"
+        )
     available = ext[1] - margin - (x0 + L)
     slide = config.slide_length_mm * 1e-3
     clamped = False
     if slide > available + 1e-12:
         if not config.clamp_slide or available <= config.window_start_mm * 1e-3:
-            raise ConfigError(f"simulate: 'slide_length_mm' = {config.slide_length_mm} does not fit the pavement "
-                              f"strip (x extent {(ext[1] - ext[0]) * 1e3:.2f} mm leaves {available * 1e3:.2f} mm for a "
-                              f"{config.slider_length_mm} mm slider with {config.edge_margin_mm} mm margins)")
+            raise ConfigError(
+                f"simulate: 'slide_length_mm' = {config.slide_length_mm} does not fit the pavement "
+                f"strip (x extent {(ext[1] - ext[0]) * 1e3:.2f} mm leaves {available * 1e3:.2f} mm for a "
+                f"{config.slider_length_mm} mm slider with {config.edge_margin_mm} mm margins)"
+            )
         slide, clamped = available, True
 
-    mesh = SliderMesh.box(config.slider_length_mm, config.slider_width_mm, config.slider_thickness_mm,
-                          config.element_mm, origin_m=(x0, y0, 0.0))
-    nx, ny, nz = mesh.nx, mesh.ny, mesh.nz
-    X = to_internal(mesh.coordinates)                    # (3, nz+1, ny+1, nx+1)
+    mesh = SliderMesh.box(
+        config.slider_length_mm,
+        config.slider_width_mm,
+        config.slider_thickness_mm,
+        config.element_mm,
+        origin_m=(x0, y0, 0.0),
+    )
+    X = to_internal(mesh.coordinates)  # (3, nz+1, ny+1, nx+1)
     zs0, _, _ = pavement.evaluate(X[0, 0].ravel(), X[1, 0].ravel())
     zs0 = np.asarray(zs0, dtype=float)
     if not np.all(np.isfinite(zs0)):
         raise ConfigError("simulate: the pavement returned non-finite heights under the slider's start position")
-    X[2] += zs0.max()                                     # bottom face touches the highest point under its nodes
+    X[2] += zs0.max()  # bottom face touches the highest point under its nodes
 
     # ---- masses, stiffness, loads ---------------------------------------------------------------------------------
     mass = to_internal(lumped_mass(mesh, mat.density_kg_m3 * config.mass_scaling))
@@ -205,26 +254,39 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     area_b = mesh.nodal_tributary_area_bottom().T.copy()  # (ny+1, nx+1) m^2
     h_pen = mesh.hz if config.penalty_length_mm is None else config.penalty_length_mm * 1e-3  # m
     k_pen = config.penalty_scale * mat.youngs_modulus_pa * area_b / h_pen  # N/m per bottom node
-    f_top = -config.load_n * area_b / area_b.sum()        # N per top node (same tributary pattern)
+    f_top = -config.load_n * area_b / area_b.sum()  # N per top node (same tributary pattern)
     m_b = mass[0]
-    m_holder = float(mass[-1].sum())                     # the top face moves as one rigid holder in z
+    m_holder = float(mass[-1].sum())  # the top face moves as one rigid holder in z
     vz_holder = 0.0
     c_holder = config.holder_damping_per_s * float(mass.sum())  # N s/m
     omega_el = max_frequency_power_iteration(mesh, mat, mass)
     if slope_bound is None:
-        slope_bound = _max_slope_sq(pavement, x0, min(ext[1], x0 + L + slide), y0, y0 + W,
-                                    spacing_m=min(mesh.hx, mesh.hy) / 4)
+        slope_bound = _max_slope_sq(
+            pavement, x0, min(ext[1], x0 + L + slide), y0, y0 + W, spacing_m=min(mesh.hx, mesh.hy) / 4
+        )
     normal_gap = config.contact_gap == "normal"
-    # normal stiffness of the contact: k (1 + |grad z|^2) for the vertical gap, k for the normal gap
-    omega_pen_sq = float(np.max(k_pen * (1.0 if normal_gap else 1.0 + slope_bound) / m_b))
-    omega = math.sqrt(omega_el ** 2 + omega_pen_sq)
+    fric_penalty = config.friction_model == "penalty"
+    k_fric = config.friction_stiffness_pa_per_m * area_b  # N/m per bottom node (penalty friction)
+    # normal stiffness of the contact: k (1 + |grad z|^2) for the vertical gap, k for the normal gap; the
+    # tangential penalty k_t acts in the tangent plane, orthogonal to it: the node's largest eigenvalue is the max
+    k_contact = k_pen * (1.0 if normal_gap else 1.0 + slope_bound)
+    if fric_penalty:
+        k_contact = np.maximum(k_contact, k_fric)
+    omega_pen_sq = float(np.max(k_contact / m_b))
+    omega = math.sqrt(omega_el**2 + omega_pen_sq)
     dt = config.dt_safety * 2.0 / omega
+    rayleigh = config.slide_damping_model == "rayleigh"
+    alpha_r, beta_r = rayleigh_coefficients(config.loss_factor, config.loss_band_hz) if rayleigh else (0.0, 0.0)
+    kern_beta = None
+    if rayleigh:
+        dt *= damped_step_factor(omega, alpha_r, beta_r)
+        kern_beta = StructuredKernel(mesh, beta_r * kern.k)  # stiffness-proportional damping, N s/m
 
     n_pre_max = max(1, int(math.ceil(config.preload_time_s / dt)))
     n_ramp = min(n_pre_max, max(1, int(math.ceil(config.preload_ramp_s / dt))))
     n_check = max(1, int(math.ceil(config.preload_check_s / dt)))
     n_slide = max(1, int(math.ceil(slide / (v_slide * dt))))
-    n_pre = n_pre_max                                     # lowered when the preload has converged
+    n_pre = n_pre_max  # lowered when the preload has converged
     n_total = n_pre + n_slide
     t_ramp = n_ramp * dt
     fz_prev_check = None
@@ -238,6 +300,7 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     fint = np.zeros_like(X)
     tmp = np.zeros_like(X)
     fdamp = np.zeros_like(X)
+    fbeta = np.zeros_like(X) if kern_beta is not None else None
     dt_minv = dt * minv[None]
     # bottom face as flat views (3, (ny+1)(nx+1)): each component's face block is contiguous in the layout
     ub, vb, fb = u[:, 0].reshape(3, -1), v[:, 0].reshape(3, -1), f[:, 0].reshape(3, -1)
@@ -245,6 +308,9 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     Xb = X[:, 0].reshape(3, -1)
     m_bf = m_b.ravel()
     k_pen_f = k_pen.ravel()
+    k_fric_f = k_fric.ravel()
+    ft_state = np.zeros((3, m_bf.size))  # penalty friction: tangential force per bottom node, N
+    fric_energy = 0.0  # J stored in the tangential penalty springs
     area_bf = area_b.ravel()
     inv_mb_dt = dt / m_bf
     mb_over_dt = m_bf / dt
@@ -261,6 +327,7 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     rec_ff = np.empty(n_rec)
     rec_nc = np.empty(n_rec, dtype=np.int64)
     rec_ns = np.empty(n_rec, dtype=np.int64)
+    rec_sl = np.empty(n_rec)
 
     e = dict(external=0.0, friction=0.0, damping=0.0, viscous=0.0)
     state0 = {}
@@ -270,14 +337,22 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         vtu_steps = set(np.unique(np.linspace(0, n_slide - 1, int(config.vtu_frames)).round().astype(int)).tolist())
     max_pen = 0.0
     preload_force = preload_area = 0.0
+    fz_sum = area_now = pen_energy = 0.0  # contact force (N), area (m^2), penalty energy (J) of the last step
     last_log = t_wall0
     fric = np.zeros((3, 0))
     fcn = np.zeros((3, 0))
     ia = all_nodes[:0]
     n_stick = 0
     N = np.zeros(0)
-    log.info("simulate: %d elements, dt %.3g us, <= %d preload + %d slide steps at %.1f km/h over %.1f mm",
-             mesh.n_elements, dt * 1e6, n_pre, n_slide, speed_kmh, slide * 1e3)
+    log.info(
+        "simulate: %d elements, dt %.3g us, <= %d preload + %d slide steps at %.1f km/h over %.1f mm",
+        mesh.n_elements,
+        dt * 1e6,
+        n_pre,
+        n_slide,
+        speed_kmh,
+        slide * 1e3,
+    )
 
     rec = 0
     step = -1
@@ -288,15 +363,24 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         sliding = step >= n_pre
         if step == n_pre:  # ---- start of sliding: every node gets the test speed
             preload_force, preload_area = fz_sum, area_now
-            log.info("preload: contact force %.4f N (load %.4f N) after %d steps (%.3g ms)", preload_force,
-                     config.load_n, n_pre, n_pre * dt * 1e3)
+            log.info(
+                "preload: contact force %.4f N (load %.4f N) after %d steps (%.3g ms)",
+                preload_force,
+                config.load_n,
+                n_pre,
+                n_pre * dt * 1e3,
+            )
             v[0] += v_slide
             kern.force(u, fint)
-            state0 = dict(kinetic=0.5 * float(np.vdot(mass, (v * v).sum(axis=0))),
-                          strain=kern.strain_energy(), contact=pen_energy)
+            state0 = dict(
+                kinetic=0.5 * float(np.vdot(mass, (v * v).sum(axis=0))),
+                strain=kern.strain_energy(),
+                contact=pen_energy,
+                friction_elastic=fric_energy,
+            )
         # ---- internal force (and Prony history) at u(n)
         t_a = perf()
-        kern.force(u, f, negate=True)                    # f = -f_int, bit for bit
+        kern.force(u, f, negate=True)  # f = -f_int, bit for bit
         if kern.g.size:
             diss = kern.relax(dt)
             if sliding:
@@ -306,7 +390,7 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         t_b = perf()
         ph[0] += t_b - t_a
         # ---- damping (mass proportional, velocity relative to the holder)
-        c = config.slide_damping_per_s if sliding else config.preload_damping_per_s
+        c = (alpha_r if rayleigh else config.slide_damping_per_s) if sliding else config.preload_damping_per_s
         vx_frame = v_slide if sliding else 0.0
         # sliding: dashpots to the holder (moving with (v_slide, 0, vz_holder)), so the rigid vertical motion that
         # follows the texture is not resisted; preload: to the ground (dynamic relaxation of the whole slider)
@@ -315,12 +399,15 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
             if c != c_cached:
                 c_cached = c
                 neg_cm = -c * mass
-            np.multiply(v, neg_cm[None], out=fdamp)       # -c m (v - v_frame), frame terms on two components
+            np.multiply(v, neg_cm[None], out=fdamp)  # -c m (v - v_frame), frame terms on two components
             if vx_frame:
                 fdamp[0] -= vx_frame * neg_cm
             if vz_frame:
                 fdamp[2] -= vz_frame * neg_cm
             f += fdamp
+        if sliding and kern_beta is not None:  # -beta K v: rigid (frame) motion is in K's null space
+            kern_beta.force(v, fbeta, negate=True)
+            f += fbeta
         t_a = perf()
         ph[1] += t_a - t_b
         # ---- contact normal (penalty, conservative), evaluated on the candidate nodes only: those below the
@@ -333,7 +420,7 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
             zs, gx, gy = pavement.evaluate(xb[cand], yb[cand])
             d = zs - zb[cand]
             act = d > 0.0
-            ia = cand[act]                                # nodes in contact
+            ia = cand[act]  # nodes in contact
             d = d[act]
             gx = gx[act]
             gy = gy[act]
@@ -353,22 +440,35 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         pen_energy = 0.5 * float(np.dot(kd, d))
         t_b = perf()
         ph[2] += t_b - t_a
-        # ---- friction with the stick limit (nodes in contact; the others carry none)
+        # ---- friction: stick limit or penalty with return mapping (nodes in contact; the others carry none)
         n_len = np.sqrt(1.0 + gx * gx + gy * gy)
         N = kd * n_len
-        vt = vb[:, ia] + fb[:, ia] * inv_mb_dt[ia]       # trial velocity without friction
         nxh, nyh, nzh = -gx / n_len, -gy / n_len, 1.0 / n_len
-        vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
-        vt[0] -= vn * nxh
-        vt[1] -= vn * nyh
-        vt[2] -= vn * nzh
-        s = np.sqrt((vt * vt).sum(axis=0))
-        mu_n = law.mu(s) * N
-        stick_lim = mb_over_dt[ia] * s
-        n_stick = int(np.count_nonzero(stick_lim < mu_n))  # nodes held by the stick limit (diagnostic)
-        fmag = np.minimum(mu_n, stick_lim)
-        scale = np.where(s > 0.0, -fmag / np.where(s > 0.0, s, 1.0), 0.0)
-        fric = vt * scale
+        if fric_penalty:
+            # elastic predictor on the step's displacement increment dt v(n-1/2), return mapping onto mu(s) N;
+            # s = tangential speed of the node over the step (the slip rate once it slides)
+            vt = vb[:, ia]
+            vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
+            s = np.sqrt(np.maximum((vt * vt).sum(axis=0) - vn * vn, 0.0))
+            mu_n = law.mu(s) * N
+            fric, stuck = penalty_friction(ft_state[:, ia], vt * dt, k_fric_f[ia], mu_n, (nxh, nyh, nzh))
+            n_stick = int(np.count_nonzero(stuck))  # nodes in the elastic (stick) regime (diagnostic)
+            ft_state.fill(0.0)  # nodes out of contact lose their tangential force
+            ft_state[:, ia] = fric
+            fric_energy = 0.5 * float(((fric * fric).sum(axis=0) / k_fric_f[ia]).sum())
+        else:
+            vt = vb[:, ia] + fb[:, ia] * inv_mb_dt[ia]  # trial velocity without friction
+            vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
+            vt[0] -= vn * nxh
+            vt[1] -= vn * nyh
+            vt[2] -= vn * nzh
+            s = np.sqrt((vt * vt).sum(axis=0))
+            mu_n = law.mu(s) * N
+            stick_lim = mb_over_dt[ia] * s
+            n_stick = int(np.count_nonzero(stick_lim < mu_n))  # nodes held by the stick limit (diagnostic)
+            fmag = np.minimum(mu_n, stick_lim)
+            scale = np.where(s > 0.0, -fmag / np.where(s > 0.0, s, 1.0), 0.0)
+            fric = vt * scale
         fb[:, ia] += fric
         t_a = perf()
         ph[3] += t_a - t_b
@@ -376,13 +476,15 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
         react_x = -float(f[0, -1].sum())
         fz_holder = float(f[2, -1].sum())
         vz_old = vz_holder
-        fz_hd = -c_holder * vz_holder if sliding else 0.0   # holder suspension dashpot (to the ground)
+        fz_hd = -c_holder * vz_holder if sliding else 0.0  # holder suspension dashpot (to the ground)
         vz_holder = vz_holder + dt * (fz_holder + fz_hd) / m_holder
         # ---- update
         if sliding:
             vb_old = vb[:, ia]
             if c > 0:
                 fd_dot_v_old = float(np.vdot(fdamp, v))  # avoids copying v: f_d.(v_old + v_new) in two dots
+            if fbeta is not None:
+                fb_dot_v_old = float(np.vdot(fbeta, v))
         np.multiply(f, dt_minv, out=tmp)
         v += tmp
         v[0, -1] = vx_frame
@@ -399,6 +501,8 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
                 fd_frame = 2.0 * (vx_frame * float(fdamp[0].sum()) + vz_frame * float(fdamp[2].sum()))
                 e["damping"] -= h * (fd_dot_v_old + float(np.vdot(fdamp, v)) - fd_frame)
                 e["external"] += h * fd_frame
+            if fbeta is not None:
+                e["damping"] -= h * (fb_dot_v_old + float(np.vdot(fbeta, v)))
         np.multiply(v, dt, out=tmp)
         u += tmp
         t_b = perf()
@@ -426,6 +530,8 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
                 rec_ff[rec] = -float(fric[0].sum())
                 rec_nc[rec] = ia.size
                 rec_ns[rec] = n_stick
+                n_sum = float(N.sum())
+                rec_sl[rec] = float(np.dot(N, s)) / n_sum if n_sum > 0.0 else np.nan
                 rec += 1
             if vtu is not None and i in vtu_steps:
                 p = np.zeros(mass.shape)
@@ -437,28 +543,55 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
             last_log = now
             el = now - t_wall0
             eta = el / (step + 1) * (n_total - step - 1)
-            log.info("step %d/%d (%.0f %%), %.1f s elapsed, %.1f s left", step + 1, n_total,
-                     100.0 * (step + 1) / n_total, el, eta)
+            log.info(
+                "step %d/%d (%.0f %%), %.1f s elapsed, %.1f s left",
+                step + 1,
+                n_total,
+                100.0 * (step + 1) / n_total,
+                el,
+                eta,
+            )
             if progress is not None:
                 progress(step + 1, n_total, el, eta)
 
     # ---- energies of the sliding phase
     kern.force(u, fint)
     kinetic = 0.5 * float(np.vdot(mass, (v * v).sum(axis=0)))
-    energies = dict(external=e["external"], kinetic=kinetic - state0["kinetic"],
-                    strain=kern.strain_energy() - state0["strain"], contact=pen_energy - state0["contact"],
-                    friction=e["friction"], hourglass=0.0, damping=e["damping"], viscous=e["viscous"])
-    energies["residual"] = energies["external"] - sum(energies[k] for k in ("kinetic", "strain", "contact", "friction",
-                                                                             "hourglass", "damping", "viscous"))
-    trace = pd.DataFrame({"time_s": rec_t[:rec], "position_mm": rec_x[:rec] * 1e3, "tangential_n": rec_ft[:rec],
-                          "normal_n": rec_fn[:rec], "contact_area_mm2": rec_a[:rec] * 1e6,
-                          "friction_x_n": rec_ff[:rec], "contact_nodes": rec_nc[:rec], "stick_nodes": rec_ns[:rec]})
+    # the tangential penalty springs' stored energy is contact energy; the friction entry is what they dissipate
+    d_fric_elastic = fric_energy - state0["friction_elastic"]
+    energies = dict(
+        external=e["external"],
+        kinetic=kinetic - state0["kinetic"],
+        strain=kern.strain_energy() - state0["strain"],
+        contact=pen_energy - state0["contact"] + d_fric_elastic,
+        friction=e["friction"] - d_fric_elastic,
+        hourglass=0.0,
+        damping=e["damping"],
+        viscous=e["viscous"],
+    )
+    energies["residual"] = energies["external"] - sum(
+        energies[k] for k in ("kinetic", "strain", "contact", "friction", "hourglass", "damping", "viscous")
+    )
+    trace = pd.DataFrame(
+        {
+            "time_s": rec_t[:rec],
+            "position_mm": rec_x[:rec] * 1e3,
+            "tangential_n": rec_ft[:rec],
+            "normal_n": rec_fn[:rec],
+            "contact_area_mm2": rec_a[:rec] * 1e6,
+            "friction_x_n": rec_ff[:rec],
+            "contact_nodes": rec_nc[:rec],
+            "stick_nodes": rec_ns[:rec],
+            "slip_speed_ms": rec_sl[:rec],
+        }
+    )
     w0 = config.window_start_mm
     w1 = slide * 1e3 if config.window_end_mm is None else min(config.window_end_mm, slide * 1e3)
     win = (trace["position_mm"] >= w0) & (trace["position_mm"] <= w1)
     if not win.any():
-        raise ConfigError(f"simulate: the steady window [{w0}, {w1}] mm holds no trace rows "
-                          f"(slide {slide * 1e3:.2f} mm)")
+        raise ConfigError(
+            f"simulate: the steady window [{w0}, {w1}] mm holds no trace rows (slide {slide * 1e3:.2f} mm)"
+        )
     ft = float(trace.loc[win, "tangential_n"].mean())
     fn = float(trace.loc[win, "normal_n"].mean())
     if trace_path is not None:
@@ -468,10 +601,34 @@ def _simulate(pavement, speed_kmh: float, law, config: SolverConfig | None = Non
     phase_s["setup_and_rest"] = wall - sum(ph)
     log.info("simulate: SN %.4f (Ft %.4f N / Fn %.4f N), %d steps in %.1f s", ft / fn, ft, fn, n_total, wall)
     return SimulationResult(
-        sn=ft / fn, tangential_n=ft, normal_n=fn, n_steps=n_total, dt_s=dt, wall_s=wall, energies=energies,
-        trace=trace, speed_kmh=float(speed_kmh), slide_length_mm=slide * 1e3, slide_clamped=clamped,
-        window_mm=(float(w0), float(w1)), preload_steps=n_pre, preload_contact_force_n=preload_force,
-        preload_contact_area_mm2=preload_area * 1e6, max_penetration_um=max_pen * 1e6, n_elements=mesh.n_elements,
-        omega_max_rad_s=omega, mean_contact_area_mm2=float(trace.loc[win, "contact_area_mm2"].mean()),
-        meta=dict(config=config.as_dict(), y_offset_mm=float(y_offset_mm), omega_elastic_rad_s=omega_el,
-                  slope_bound=float(slope_bound), element_size_m=(mesh.hx, mesh.hy, mesh.hz), phase_s=phase_s))
+        sn=ft / fn,
+        tangential_n=ft,
+        normal_n=fn,
+        n_steps=n_total,
+        dt_s=dt,
+        wall_s=wall,
+        energies=energies,
+        trace=trace,
+        speed_kmh=float(speed_kmh),
+        slide_length_mm=slide * 1e3,
+        slide_clamped=clamped,
+        window_mm=(float(w0), float(w1)),
+        preload_steps=n_pre,
+        preload_contact_force_n=preload_force,
+        preload_contact_area_mm2=preload_area * 1e6,
+        max_penetration_um=max_pen * 1e6,
+        n_elements=mesh.n_elements,
+        omega_max_rad_s=omega,
+        mean_contact_area_mm2=float(trace.loc[win, "contact_area_mm2"].mean()),
+        mean_slip_speed_ms=float(trace.loc[win, "slip_speed_ms"].mean()),
+        meta=dict(
+            config=config.as_dict(),
+            y_offset_mm=float(y_offset_mm),
+            omega_elastic_rad_s=omega_el,
+            rayleigh_alpha_per_s=alpha_r,
+            rayleigh_beta_s=beta_r,
+            slope_bound=float(slope_bound),
+            element_size_m=(mesh.hx, mesh.hy, mesh.hz),
+            phase_s=phase_s,
+        ),
+    )

@@ -69,8 +69,15 @@ class StructuredKernel:
     branch_tau_s: relaxation times tau_i (s).
     """
 
-    def __init__(self, mesh: SliderMesh, k_elastic: np.ndarray, *, k_dev_unit: np.ndarray | None = None,
-                 branch_g_pa=(), branch_tau_s=()):
+    def __init__(
+        self,
+        mesh: SliderMesh,
+        k_elastic: np.ndarray,
+        *,
+        k_dev_unit: np.ndarray | None = None,
+        branch_g_pa=(),
+        branch_tau_s=(),
+    ):
         self.mesh = mesh
         self.k = np.ascontiguousarray(k_elastic, dtype=float)
         nx, ny, nz = mesh.nx, mesh.ny, mesh.nz
@@ -78,7 +85,7 @@ class StructuredKernel:
         sy, sz = nx + 1, (nx + 1) * (ny + 1)
         self.offsets = [dk * sz + dj * sy + di for di, dj, dk in HEX_CORNERS]
         self.n_nodes = (nz + 1) * sz
-        self.n_cols = nz * sz                             # padded element columns (real + dummy)
+        self.n_cols = nz * sz  # padded element columns (real + dummy)
         # slab length: up to the last real element (the slab of the farthest corner then ends at the last node)
         self.n_slab = (nz - 1) * sz + (ny - 1) * sy + nx
         self.ue = np.zeros((24, self.n_cols))
@@ -101,21 +108,21 @@ class StructuredKernel:
         uf = u.reshape(3, self.n_nodes)
         n = self.n_slab
         for c, o in enumerate(self.offsets):
-            ue[3 * c:3 * c + 3, :n] = uf[:, o:o + n]
+            ue[3 * c : 3 * c + 3, :n] = uf[:, o : o + n]
         ue4 = self._ue4
-        ue4[:, :, self.mesh.ny, :] = 0.0                 # dummy columns (j = ny, i = nx); the tail beyond n_slab
-        ue4[:, :, :, self.mesh.nx] = 0.0                 # is such a column and stays 0 from the allocation
+        ue4[:, :, self.mesh.ny, :] = 0.0  # dummy columns (j = ny, i = nx); the tail beyond n_slab
+        ue4[:, :, :, self.mesh.nx] = 0.0  # is such a column and stays 0 from the allocation
         return ue
 
     def scatter(self, fe: np.ndarray, out: np.ndarray) -> np.ndarray:
         """Add element forces ``(24, n_cols)`` (padded layout, dummies 0) to the nodal array ``out`` (zeroed first)."""
         of = out.reshape(3, self.n_nodes)
         n = self.n_slab
-        of[:, :n] = fe[0:3, :n]                           # corner 0 (offset 0) is assigned, the rest zeroed
+        of[:, :n] = fe[0:3, :n]  # corner 0 (offset 0) is assigned, the rest zeroed
         of[:, n:] = 0.0
         for c in range(1, 8):
             o = self.offsets[c]
-            of[:, o:o + n] += fe[3 * c:3 * c + 3, :n]
+            of[:, o : o + n] += fe[3 * c : 3 * c + 3, :n]
         return out
 
     def real_columns(self, a: np.ndarray) -> np.ndarray:
@@ -194,8 +201,10 @@ class NaiveKernel:
         nx, ny, nz = mesh.nx, mesh.ny, mesh.nz
         k, j, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
         # flat node ids in the internal (k, j, i) layout, element table (n_el, 8) in C3D8 corner order
-        self.conn = np.stack([((k.ravel() + dk) * (ny + 1) + j.ravel() + dj) * (nx + 1) + i.ravel() + di
-                              for di, dj, dk in HEX_CORNERS], axis=1)
+        self.conn = np.stack(
+            [((k.ravel() + dk) * (ny + 1) + j.ravel() + dj) * (nx + 1) + i.ravel() + di for di, dj, dk in HEX_CORNERS],
+            axis=1,
+        )
         self.n_nodes = mesh.n_nodes
         self.mode = scatter
         # flat dof index 3*node + d for component-first layout: d * n_nodes + node
@@ -205,8 +214,8 @@ class NaiveKernel:
 
     def force(self, u: np.ndarray, out: np.ndarray) -> np.ndarray:
         uf = u.reshape(-1)
-        ue = uf[self.dof]                      # gather (n_el, 24)
-        fe = ue @ self.k.T                     # (n_el, 24)
+        ue = uf[self.dof]  # gather (n_el, 24)
+        fe = ue @ self.k.T  # (n_el, 24)
         if self.mode == "add_at":
             of = np.zeros(3 * self.n_nodes)
             np.add.at(of, self.dof, fe)

@@ -52,11 +52,15 @@ class RubberMaterial:
         if not self.density_kg_m3 > 0:
             raise ConfigError(f"solver config field 'density_kg_m3': expected > 0 kg/m^3, got {self.density_kg_m3}")
         if len(self.prony_g) != len(self.prony_tau_s):
-            raise ConfigError("solver config fields 'prony_g'/'prony_tau_s': expected equal lengths, got "
-                              f"{len(self.prony_g)} and {len(self.prony_tau_s)}")
+            raise ConfigError(
+                "solver config fields 'prony_g'/'prony_tau_s': expected equal lengths, got "
+                f"{len(self.prony_g)} and {len(self.prony_tau_s)}"
+            )
         if any(g < 0 for g in self.prony_g) or any(t <= 0 for t in self.prony_tau_s):
-            raise ConfigError("solver config fields 'prony_g'/'prony_tau_s': expected g_i >= 0 and tau_i > 0 s, got "
-                              f"{self.prony_g}, {self.prony_tau_s}")
+            raise ConfigError(
+                "solver config fields 'prony_g'/'prony_tau_s': expected g_i >= 0 and tau_i > 0 s, got "
+                f"{self.prony_g}, {self.prony_tau_s}"
+            )
 
     @property
     def shear_modulus_pa(self) -> float:
@@ -85,8 +89,9 @@ class RubberMaterial:
     @property
     def dilatational_wave_speed_ms(self) -> float:
         """c_d = sqrt((K + 4/3 G_0) / rho) in m/s with the instantaneous shear modulus."""
-        return float(np.sqrt((self.bulk_modulus_pa + 4.0 / 3.0 * self.instantaneous_shear_modulus_pa)
-                             / self.density_kg_m3))
+        return float(
+            np.sqrt((self.bulk_modulus_pa + 4.0 / 3.0 * self.instantaneous_shear_modulus_pa) / self.density_kg_m3)
+        )
 
     @property
     def viscoelastic(self) -> bool:
@@ -142,16 +147,18 @@ def element_matrices(hx: float, hy: float, hz: float) -> tuple[np.ndarray, np.nd
     return 0.5 * (k_vol + k_vol.T), 0.5 * (k_dev + k_dev.T)
 
 
-def element_stiffness(material: RubberMaterial, hx: float, hy: float, hz: float, *,
-                      instantaneous: bool = True) -> np.ndarray:
+def element_stiffness(
+    material: RubberMaterial, hx: float, hy: float, hz: float, *, instantaneous: bool = True
+) -> np.ndarray:
     """24 x 24 element stiffness in N/m; with the instantaneous (``G_0``) or long-term (``G_inf``) shear modulus."""
     k_vol, k_dev = element_matrices(hx, hy, hz)
     g = material.instantaneous_shear_modulus_pa if instantaneous else material.shear_modulus_pa
     return material.bulk_modulus_pa * k_vol + g * k_dev
 
 
-def element_max_frequency(material: RubberMaterial, hx: float, hy: float, hz: float,
-                          density_scale: float = 1.0) -> float:
+def element_max_frequency(
+    material: RubberMaterial, hx: float, hy: float, hz: float, density_scale: float = 1.0
+) -> float:
     """Highest natural circular frequency (rad/s) of one free element with lumped mass.
 
     By the element eigenvalue inequality (Irons; Hughes, *The Finite Element Method*, thm. 9.1.1) this bounds the
@@ -169,5 +176,5 @@ def lumped_mass(mesh, density_kg_m3: float) -> np.ndarray:
     m = np.zeros(mesh.node_shape)
     me = density_kg_m3 * mesh.hx * mesh.hy * mesh.hz / 8.0
     for di, dj, dk in HEX_CORNERS:
-        m[di:di + mesh.nx, dj:dj + mesh.ny, dk:dk + mesh.nz] += me
+        m[di : di + mesh.nx, dj : dj + mesh.ny, dk : dk + mesh.nz] += me
     return m

@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from ..atomic import atomic_path, write_parquet, write_text
+
 #: Energy table keys (J); every entry is the change over the sliding phase, see :class:`SimulationResult`.
-ENERGY_KEYS = ("external", "kinetic", "strain", "contact", "friction", "hourglass", "damping", "viscous",
-               "residual")
+ENERGY_KEYS = ("external", "kinetic", "strain", "contact", "friction", "hourglass", "damping", "viscous", "residual")
 
 
 @dataclass
@@ -29,7 +29,11 @@ class SimulationResult:
         (dissipated by mass-proportional damping), ``viscous`` (dissipated in the Prony branches) and
         ``residual = external - (kinetic + strain + contact + friction + hourglass + damping + viscous)``.
     trace: DataFrame (time_s from the start of sliding, position_mm = holder displacement, tangential_n,
-        normal_n, contact_area_mm2 = tributary area of the bottom nodes in contact).
+        normal_n, contact_area_mm2 = tributary area of the bottom nodes in contact, friction_x_n, contact_nodes,
+        stick_nodes, slip_speed_ms = the slip speed the friction law sees, m/s, mean over the contact nodes
+        weighted by their normal force).
+    mean_slip_speed_ms: window mean of the trace's ``slip_speed_ms`` (m/s): the speed at which the friction law is
+        sampled, to compare with the sliding speed ``speed_kmh / 3.6``.
     """
 
     sn: float
@@ -51,6 +55,7 @@ class SimulationResult:
     n_elements: int = 0
     omega_max_rad_s: float = 0.0
     mean_contact_area_mm2: float = 0.0
+    mean_slip_speed_ms: float = float("nan")
     meta: dict = field(default_factory=dict)
 
     @property
@@ -64,23 +69,33 @@ class SimulationResult:
 
     def summary(self) -> dict:
         """Flat dict of the scalar results (for tables and JSON)."""
-        d = {k: getattr(self, k) for k in ("sn", "tangential_n", "normal_n", "n_steps", "dt_s", "wall_s",
-                                            "speed_kmh", "slide_length_mm", "slide_clamped",
-                                            "preload_contact_force_n", "max_penetration_um", "n_elements",
-                                            "mean_contact_area_mm2")}
+        d = {
+            k: getattr(self, k)
+            for k in (
+                "sn",
+                "tangential_n",
+                "normal_n",
+                "n_steps",
+                "dt_s",
+                "wall_s",
+                "speed_kmh",
+                "slide_length_mm",
+                "slide_clamped",
+                "preload_contact_force_n",
+                "max_penetration_um",
+                "n_elements",
+                "mean_contact_area_mm2",
+                "mean_slip_speed_ms",
+            )
+        }
         d["window_start_mm"], d["window_end_mm"] = self.window_mm
         d.update({f"energy_{k}_j": v for k, v in self.energies.items()})
         return d
 
 
 def write_trace_parquet(trace: pd.DataFrame, path: str | Path) -> Path:
-    """Write the trace as parquet atomically (temporary name, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    trace.to_parquet(tmp, index=False)
-    os.replace(tmp, path)
-    return path
+    """Write the trace as parquet atomically (:mod:`skidsim.atomic`)."""
+    return write_parquet(path, trace)
 
 
 class VtuSeriesWriter:
@@ -99,20 +114,25 @@ class VtuSeriesWriter:
         self.prefix = prefix
         self.frames: list[tuple[float, str]] = []
 
-    def write(self, time_s: float, coordinates_m: np.ndarray, displacement_m: np.ndarray,
-              contact_pressure_pa: np.ndarray) -> Path:
+    def write(
+        self, time_s: float, coordinates_m: np.ndarray, displacement_m: np.ndarray, contact_pressure_pa: np.ndarray
+    ) -> Path:
         """Write one frame; arrays in mesh layout ``(3, nx+1, ny+1, nz+1)`` / ``(nx+1, ny+1, nz+1)``."""
         import meshio
 
         pts = (coordinates_m + displacement_m).reshape(3, -1).T
         cells = [("hexahedron", self.mesh.connectivity)]
-        m = meshio.Mesh(pts, cells, point_data={
-            "displacement_m": displacement_m.reshape(3, -1).T.copy(),
-            "contact_pressure_pa": contact_pressure_pa.reshape(-1).copy()})
+        m = meshio.Mesh(
+            pts,
+            cells,
+            point_data={
+                "displacement_m": displacement_m.reshape(3, -1).T.copy(),
+                "contact_pressure_pa": contact_pressure_pa.reshape(-1).copy(),
+            },
+        )
         name = f"{self.prefix}_{len(self.frames):04d}.vtu"
-        tmp = self.dir / (name + ".tmp")
-        meshio.write(tmp, m, file_format="vtu")
-        os.replace(tmp, self.dir / name)
+        with atomic_path(self.dir / name) as tmp:
+            meshio.write(tmp, m, file_format="vtu")
         self.frames.append((float(time_s), name))
         self._write_pvd()
         return self.dir / name
@@ -121,7 +141,4 @@ class VtuSeriesWriter:
         lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1">', "<Collection>"]
         lines += [f'<DataSet timestep="{t:.9g}" part="0" file="{n}"/>' for t, n in self.frames]
         lines += ["</Collection>", "</VTKFile>", ""]
-        path = self.dir / f"{self.prefix}.pvd"
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text("\n".join(lines))
-        os.replace(tmp, path)
+        write_text(self.dir / f"{self.prefix}.pvd", "\n".join(lines))

@@ -81,8 +81,9 @@ def pavement_extent_m(pavement) -> tuple[float, float, float, float]:
     if ext is None:
         ext = getattr(pavement, "extent", None)  # skidsim.reconstruct.Heightfield: extent in m
     if ext is None:
-        raise TypeError(f"pavement {type(pavement).__name__} has no 'extent_m' or 'extent' "
-                        "(x_min, x_max, y_min, y_max) in m")
+        raise TypeError(
+            f"pavement {type(pavement).__name__} has no 'extent_m' or 'extent' (x_min, x_max, y_min, y_max) in m"
+        )
     ext = tuple(float(e) for e in ext)
     if len(ext) != 4 or not (ext[1] > ext[0] and ext[3] > ext[2]):
         raise ValueError(f"pavement extent_m: expected (x_min, x_max, y_min, y_max) with max > min in m, got {ext}")
@@ -118,8 +119,8 @@ class RandomTexture:
         lam = np.exp(rng.uniform(np.log(self.min_wavelength_m), np.log(self.max_wavelength_m), self.n_modes))
         theta = rng.uniform(0, np.pi, self.n_modes)
         phase = rng.uniform(0, 2 * np.pi, self.n_modes)
-        amp = lam ** self.hurst
-        amp *= self.rms_m / np.sqrt(0.5 * np.sum(amp ** 2))
+        amp = lam**self.hurst
+        amp *= self.rms_m / np.sqrt(0.5 * np.sum(amp**2))
         k = 2 * np.pi / lam
         return amp, k * np.cos(theta), k * np.sin(theta), phase
 
@@ -145,15 +146,15 @@ def to_heightfield(surface, spacing_m: float = 0.1e-3, name: str = ""):
     y = y0 + spacing_m * np.arange(ny)
     X, Y = np.meshgrid(x, y)
     z, _, _ = surface.evaluate(X.ravel(), Y.ravel())
-    return Heightfield(np.asarray(z).reshape(X.shape), spacing_m, spacing_m, origin_m=(x0, y0),
-                       name=name or type(surface).__name__)
+    return Heightfield(
+        np.asarray(z).reshape(X.shape), spacing_m, spacing_m, origin_m=(x0, y0), name=name or type(surface).__name__
+    )
 
 
 #: Monomial -> Bernstein coefficients of a cubic on [0, 1]: ``b_i = sum_{j <= i} C(i, j) / C(3, j) a_j``.
-_MONO_TO_BERNSTEIN = np.array([[1.0, 0.0, 0.0, 0.0],
-                               [1.0, 1.0 / 3.0, 0.0, 0.0],
-                               [1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0],
-                               [1.0, 1.0, 1.0, 1.0]])
+_MONO_TO_BERNSTEIN = np.array(
+    [[1.0, 0.0, 0.0, 0.0], [1.0, 1.0 / 3.0, 0.0, 0.0], [1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0], [1.0, 1.0, 1.0, 1.0]]
+)
 
 
 class SurfaceBound:

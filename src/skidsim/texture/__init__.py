@@ -21,9 +21,25 @@ from .parameters import GROUPS, UNITS, TextureOptions, areal_parameters
 
 mpd = mean_profile_depth
 
-__all__ = ["despeckle", "despeckle_detail", "fill_invalid", "remove_form", "separate_bands", "MPDResult",
-           "mean_profile_depth", "mpd", "GROUPS", "UNITS", "TextureOptions", "areal_parameters", "campaign_table", "characterise",
-           "table4_statistics", "texture_table", "write_texture_table"]
+__all__ = [
+    "despeckle",
+    "despeckle_detail",
+    "fill_invalid",
+    "remove_form",
+    "separate_bands",
+    "MPDResult",
+    "mean_profile_depth",
+    "mpd",
+    "GROUPS",
+    "UNITS",
+    "TextureOptions",
+    "areal_parameters",
+    "campaign_table",
+    "characterise",
+    "table4_statistics",
+    "texture_table",
+    "write_texture_table",
+]
 
 #: names of .table (pandas) imported on first use (PEP 562): a step that only despeckles, filters or computes
 #: the MPD then starts without pandas (about 0.4 s of the start-up of each of the 4 x 36 per-site jobs)

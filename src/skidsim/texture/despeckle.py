@@ -208,8 +208,9 @@ def detect_spikes(surface: Surface, k: float | None = None) -> SpikeDetection:
     return SpikeDetection(mask=mask, step_mm=step, step_source=source, floor_mm=floor, k=k)
 
 
-def despeckle_fences(heights: np.ndarray, method: str = "mad", k: float | None = None,
-                     axis: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def despeckle_fences(
+    heights: np.ndarray, method: str = "mad", k: float | None = None, axis: int = 1
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per-frame ``(low_fence, high_fence, low_replacement, high_replacement)`` (mm), shaped to broadcast
     against ``heights`` along ``axis``. Replacements are the quartiles Q1, Q3."""
     if method not in FRAME_METHODS:
@@ -249,8 +250,9 @@ class DespeckleResult:
         return int(self.mask.sum())
 
 
-def despeckle_detail(surface: Surface, method: str = "local", k: float | None = None, axis: int = 1,
-                     replace: str | None = None) -> DespeckleResult:
+def despeckle_detail(
+    surface: Surface, method: str = "local", k: float | None = None, axis: int = 1, replace: str | None = None
+) -> DespeckleResult:
     """Despeckle ``surface`` and say which points were replaced; parameters as :func:`despeckle`."""
     if method not in METHODS:
         raise ValueError(f"despeckle: method must be one of {METHODS}, got {method!r}")
@@ -291,8 +293,9 @@ def despeckle_detail(surface: Surface, method: str = "local", k: float | None = 
     return DespeckleResult(surface.with_heights(out), mask, step, source)
 
 
-def despeckle(surface: Surface, method: str = "local", k: float | None = None, axis: int = 1,
-              replace: str | None = None) -> tuple[Surface, int]:
+def despeckle(
+    surface: Surface, method: str = "local", k: float | None = None, axis: int = 1, replace: str | None = None
+) -> tuple[Surface, int]:
     """Despeckle ``surface``; returns ``(new Surface, number of replaced points)``.
 
     Parameters

@@ -28,8 +28,9 @@ from .segmentation import Segmentation, segment
 PRUNING_REFERENCES = ("Sz", "Sq")
 
 
-def pruning_threshold(zc: np.ndarray, pruning_pct: float, reference: str, sz: float | None = None,
-                      sq: float | None = None) -> float:
+def pruning_threshold(
+    zc: np.ndarray, pruning_pct: float, reference: str, sz: float | None = None, sq: float | None = None
+) -> float:
     """Pruning height in mm: ``pruning_pct`` % of Sz or Sq of the mean-subtracted heights ``zc``."""
     if reference not in PRUNING_REFERENCES:
         raise ValueError(f"pruning reference must be one of {PRUNING_REFERENCES}, got {reference!r}")
@@ -49,7 +50,7 @@ def peak_curvature(zc: np.ndarray, flat_index: np.ndarray, dx: float, dy: float,
     r, c = r[ok], c[ok]
     if r.size == 0:
         return np.empty(0)
-    oy, ox = np.mgrid[-half:half + 1, -half:half + 1]
+    oy, ox = np.mgrid[-half : half + 1, -half : half + 1]
     x = (ox * dx).ravel()
     y = (oy * dy).ravel()
     design = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
@@ -59,9 +60,18 @@ def peak_curvature(zc: np.ndarray, flat_index: np.ndarray, dx: float, dy: float,
     return -(coef[:, 3] + coef[:, 5])
 
 
-def feature_parameters(zc: np.ndarray, dx: float, dy: float, *, pruning_pct: float = 5.0,
-                       pruning_reference: str = "Sz", exclude_edge: bool = False, spc_half_window: int = 2,
-                       hills: Segmentation | None = None, dales: Segmentation | None = None) -> dict[str, float]:
+def feature_parameters(
+    zc: np.ndarray,
+    dx: float,
+    dy: float,
+    *,
+    pruning_pct: float = 5.0,
+    pruning_reference: str = "Sz",
+    exclude_edge: bool = False,
+    spc_half_window: int = 2,
+    hills: Segmentation | None = None,
+    dales: Segmentation | None = None,
+) -> dict[str, float]:
     """Spc (1/mm), S10z S5p S5v (mm), Spd (1/mm^2), Shv (mm^3) of mean-subtracted heights ``zc`` (mm)."""
     t = pruning_threshold(zc, pruning_pct, pruning_reference)
     if hills is None:
@@ -76,13 +86,26 @@ def feature_parameters(zc: np.ndarray, dx: float, dy: float, *, pruning_pct: flo
     s5p = float(np.mean(peaks[:5])) if peaks.size else np.nan
     s5v = float(-np.mean(pits[:5])) if pits.size else np.nan
     curv = peak_curvature(zc, hills.critical_index[hk], dx, dy, spc_half_window)
-    return {"Spc": float(np.mean(curv)) if curv.size else np.nan, "S10z": s5p + s5v, "S5p": s5p, "S5v": s5v,
-            "Spd": float(hk.sum()) / area, "Shv": float(np.mean(hills.volume_mm3[hk])) if hk.any() else np.nan}
+    return {
+        "Spc": float(np.mean(curv)) if curv.size else np.nan,
+        "S10z": s5p + s5v,
+        "S5p": s5p,
+        "S5v": s5v,
+        "Spd": float(hk.sum()) / area,
+        "Shv": float(np.mean(hills.volume_mm3[hk])) if hk.any() else np.nan,
+    }
 
 
-def motif_parameters(zc: np.ndarray, dx: float, dy: float, *, pruning_pct: float = 5.0,
-                     pruning_reference: str = "Sz", exclude_edge: bool = False,
-                     hills: Segmentation | None = None) -> dict[str, float]:
+def motif_parameters(
+    zc: np.ndarray,
+    dx: float,
+    dy: float,
+    *,
+    pruning_pct: float = 5.0,
+    pruning_reference: str = "Sz",
+    exclude_edge: bool = False,
+    hills: Segmentation | None = None,
+) -> dict[str, float]:
     """Our motif parameters (MountainsMap's are not public; no equivalence claimed).
 
     Motifs = the significant hills of the Wolf-pruned watershed segmentation with threshold
@@ -97,7 +120,10 @@ def motif_parameters(zc: np.ndarray, dx: float, dy: float, *, pruning_pct: float
     height = hills.base[k] - hills.critical[k]
     area = hills.area_mm2[k]
     n = int(k.sum())
-    return {"motif_count": float(n), "motif_threshold": t,
-            "motif_mean_volume": float(np.mean(hills.volume_mm3[k])) if n else np.nan,
-            "motif_mean_height_surface_ratio": float(np.mean(height / area)) if n else np.nan,
-            "motif_mean_area": float(np.mean(area)) if n else np.nan}
+    return {
+        "motif_count": float(n),
+        "motif_threshold": t,
+        "motif_mean_volume": float(np.mean(hills.volume_mm3[k])) if n else np.nan,
+        "motif_mean_height_surface_ratio": float(np.mean(height / area)) if n else np.nan,
+        "motif_mean_area": float(np.mean(area)) if n else np.nan,
+    }

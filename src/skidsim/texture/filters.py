@@ -128,7 +128,7 @@ def fit_form(surface: Surface, form: str | int = "plane") -> np.ndarray:
         sv = vpow.T @ vpow
         zu = h @ upow  # (rows, deg+1): sum_j z_ij u_j^a
         rhs_full = vpow.T @ zu  # (deg+1 [v power], deg+1 [u power])
-        a = np.array([[su[i, k] * sv[j, l] for (k, l) in terms] for (i, j) in terms])
+        a = np.array([[su[i, k] * sv[j, m] for (k, m) in terms] for (i, j) in terms])
         b = np.array([rhs_full[j, i] for (i, j) in terms])
     else:
         ii, jj = np.nonzero(valid)
@@ -186,8 +186,14 @@ def band_gains(f: np.ndarray, macro: tuple[float, float], order: int) -> dict[st
     return {"macro": low_short * high_long, "micro": 1.0 - low_short}
 
 
-def separate_bands(surface: Surface, macro: tuple[float, float] = (0.5, 50.0), order: int = 2,
-                   form: str | int = "plane", fill: str = "linear", workers: int = 1) -> dict[str, Surface]:
+def separate_bands(
+    surface: Surface,
+    macro: tuple[float, float] = (0.5, 50.0),
+    order: int = 2,
+    form: str | int = "plane",
+    fill: str = "linear",
+    workers: int = 1,
+) -> dict[str, Surface]:
     """Form removal, then areal Butterworth band separation.
 
     Order of operations: fill invalid points (:func:`fill_invalid`, method ``fill``) -> subtract the
@@ -221,6 +227,7 @@ def separate_bands(surface: Surface, macro: tuple[float, float] = (0.5, 50.0), o
     out = {"raw": raw.with_heights(h, name=surface.name)}
     for band, g in gains.items():
         g *= coeff  # in place: reuse the gain array
-        out[band] = raw.with_heights(sfft.idctn(g, type=2, norm="ortho", workers=workers, overwrite_x=True),
-                                     name=surface.name)
+        out[band] = raw.with_heights(
+            sfft.idctn(g, type=2, norm="ortho", workers=workers, overwrite_x=True), name=surface.name
+        )
     return out

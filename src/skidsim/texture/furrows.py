@@ -32,17 +32,18 @@ def _furrow_depths(z: np.ndarray, w: int, axis: int) -> tuple[np.ndarray, int]:
     m = ndimage.maximum_filter1d(z, size=size, axis=1, mode="nearest")
     j = slice(half, n - half)
     zc = z[:, j]
-    left = m[:, 0:n - 2 * half]  # center j - half
-    right = m[:, 2 * half:n]  # center j + half
-    prev = z[:, half - 1:n - half - 1]
-    nxt = z[:, half + 1:n - half + 1]
+    left = m[:, 0 : n - 2 * half]  # center j - half
+    right = m[:, 2 * half : n]  # center j + half
+    prev = z[:, half - 1 : n - half - 1]
+    nxt = z[:, half + 1 : n - half + 1]
     is_min = (zc < prev) & (zc < nxt)
     depth = np.minimum(left, right)[is_min] - zc[is_min]
     return depth, zc.size
 
 
-def furrow_parameters(zc: np.ndarray, dx: float, dy: float, *, window_mm: float = 2.0,
-                      min_depth_pct: float = 5.0) -> dict[str, float]:
+def furrow_parameters(
+    zc: np.ndarray, dx: float, dy: float, *, window_mm: float = 2.0, min_depth_pct: float = 5.0
+) -> dict[str, float]:
     """Fdmax, Fdmean (mm), Fden (cm/cm^2) of heights ``zc`` (mm); see the module docstring."""
     sz = float(zc.max() - zc.min())
     tmin = min_depth_pct / 100.0 * sz
@@ -56,5 +57,4 @@ def furrow_parameters(zc: np.ndarray, dx: float, dy: float, *, window_mm: float 
         p.append(depth.size / (tested * step) if tested else 0.0)  # crossings per mm of profile
     d = np.concatenate(total_depths)
     la = np.pi / 4.0 * (p[0] + p[1])  # 1/mm
-    return {"Fdmax": float(d.max()) if d.size else 0.0, "Fdmean": float(d.mean()) if d.size else 0.0,
-            "Fden": 10.0 * la}
+    return {"Fdmax": float(d.max()) if d.size else 0.0, "Fdmean": float(d.mean()) if d.size else 0.0, "Fden": 10.0 * la}

@@ -27,5 +27,12 @@ def height_parameters(z: np.ndarray) -> dict[str, float]:
     m4 = float(c2.sum() / n)
     sp = float(c.max())
     sv = float(-c.min())
-    return {"Sq": sq, "Ssk": m3 / sq**3 if sq > 0 else np.nan, "Sku": m4 / m2**2 if sq > 0 else np.nan,
-            "Sp": sp, "Sv": sv, "Sz": sp + sv, "Sa": sa}
+    return {
+        "Sq": sq,
+        "Ssk": m3 / sq**3 if sq > 0 else np.nan,
+        "Sku": m4 / m2**2 if sq > 0 else np.nan,
+        "Sp": sp,
+        "Sv": sv,
+        "Sz": sp + sv,
+        "Sa": sa,
+    }

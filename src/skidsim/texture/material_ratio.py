@@ -72,13 +72,19 @@ class MaterialRatio:
         w = int(round(EQUIVALENCE_WIDTH_PCT / step))
         secant = (h[w:] - h[:-w]) / EQUIVALENCE_WIDTH_PCT  # all <= 0
         i0 = int(np.argmax(secant))  # smallest gradient magnitude, first occurrence
-        xs, ys = mr[i0:i0 + w + 1], h[i0:i0 + w + 1]
+        xs, ys = mr[i0 : i0 + w + 1], h[i0 : i0 + w + 1]
         slope, intercept = np.polyfit(xs, ys, 1)
         return float(slope), float(intercept)
 
 
-def material_ratio_parameters(z: np.ndarray | None = None, *, curve: MaterialRatio | None = None,
-                              p_pct: float = 10.0, q_pct: float = 80.0, n_classes: int = 10001) -> dict[str, float]:
+def material_ratio_parameters(
+    z: np.ndarray | None = None,
+    *,
+    curve: MaterialRatio | None = None,
+    p_pct: float = 10.0,
+    q_pct: float = 80.0,
+    n_classes: int = 10001,
+) -> dict[str, float]:
     """Vm Vv Vmp Vmc Vvc Vvv (mm^3/mm^2), Sk Spk Svk (mm), Smr1 Smr2 (%), Sa1 Sa2 (mm^3/mm^2).
 
     Heights are taken as given (the caller subtracts the mean plane; these parameters do not depend on it).
@@ -96,5 +102,18 @@ def material_ratio_parameters(z: np.ndarray | None = None, *, curve: MaterialRat
     sa2 = mrc.volume_below(lower)
     spk = 2.0 * sa1 * 100.0 / smr1 if smr1 > 0 else 0.0
     svk = 2.0 * sa2 * 100.0 / (100.0 - smr2) if smr2 < 100 else 0.0
-    return {"Vm": vm_p, "Vv": vv_p, "Vmp": vm_p, "Vmc": vm_q - vm_p, "Vvc": vv_p - vv_q, "Vvv": vv_q,
-            "Sk": upper - lower, "Spk": spk, "Svk": svk, "Smr1": smr1, "Smr2": smr2, "Sa1": sa1, "Sa2": sa2}
+    return {
+        "Vm": vm_p,
+        "Vv": vv_p,
+        "Vmp": vm_p,
+        "Vmc": vm_q - vm_p,
+        "Vvc": vv_p - vv_q,
+        "Vvv": vv_q,
+        "Sk": upper - lower,
+        "Spk": spk,
+        "Svk": svk,
+        "Smr1": smr1,
+        "Smr2": smr2,
+        "Sa1": sa1,
+        "Sa2": sa2,
+    }

@@ -70,14 +70,19 @@ class MPDOptions:
             if not 0 <= v <= 100:
                 raise ConfigError(f"MPD option {name}: expected a share in % from 0 to 100, got {v!r}")
         if not np.isfinite(self.plate_threshold_mm):
-            raise ConfigError(f"MPD option plate_threshold_mm: expected a height in mm, "
-                              f"got {self.plate_threshold_mm!r}")
+            raise ConfigError(
+                f"MPD option plate_threshold_mm: expected a height in mm, got {self.plate_threshold_mm!r}"
+            )
         if self.segment_mm < 4 * self.resample_mm:
-            raise ConfigError(f"MPD option segment_mm: expected at least 4 resampled samples "
-                             f"({4 * self.resample_mm} mm), got {self.segment_mm!r}")
+            raise ConfigError(
+                f"MPD option segment_mm: expected at least 4 resampled samples "
+                f"({4 * self.resample_mm} mm), got {self.segment_mm!r}"
+            )
         if self.lowpass_mm is not None and not self.lowpass_mm > 2 * self.resample_mm:
-            raise ConfigError(f"MPD option lowpass_mm: expected null or a wavelength above 2 x resample_mm "
-                             f"({2 * self.resample_mm} mm), got {self.lowpass_mm!r}")
+            raise ConfigError(
+                f"MPD option lowpass_mm: expected null or a wavelength above 2 x resample_mm "
+                f"({2 * self.resample_mm} mm), got {self.lowpass_mm!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -104,9 +109,17 @@ class Segments:
         """The segments as a DataFrame (columns as the attributes, mm and %)."""
         import pandas as pd
 
-        return pd.DataFrame({"profile": self.profile, "start_mm": self.start_mm, "end_mm": self.end_mm,
-                             "msd_mm": self.msd_mm, "dropout_pct": self.dropout_pct,
-                             "spike_pct": self.spike_pct, "valid": self.valid})
+        return pd.DataFrame(
+            {
+                "profile": self.profile,
+                "start_mm": self.start_mm,
+                "end_mm": self.end_mm,
+                "msd_mm": self.msd_mm,
+                "dropout_pct": self.dropout_pct,
+                "spike_pct": self.spike_pct,
+                "valid": self.valid,
+            }
+        )
 
 
 @dataclass(frozen=True)
@@ -151,8 +164,9 @@ def _segment_index(x: np.ndarray, length: float) -> np.ndarray:
     return s.astype(np.int64)
 
 
-def find_plates(x: np.ndarray, z: np.ndarray, threshold_mm: float = 30.0,
-                buffer_mm: float = 2.0) -> tuple[float | None, float | None]:
+def find_plates(
+    x: np.ndarray, z: np.ndarray, threshold_mm: float = 30.0, buffer_mm: float = 2.0
+) -> tuple[float | None, float | None]:
     """Where reference plates end and begin (module docstring, step 0): ``(start_mm, end_mm)``, None where the
     profile has no plate edge in that half."""
     idx = np.where(np.isnan(z), 0, np.arange(len(z)))
@@ -210,13 +224,23 @@ def _block(z: np.ndarray, x: np.ndarray, o: MPDOptions, offset_mm: float = 0.0) 
         s_ratio = spike[:, take].mean(axis=1)
         valid = (d_ratio <= o.max_dropout_pct / 100.0) & (s_ratio <= o.max_spike_pct / 100.0)
         for i in range(len(msd)):
-            out.append((i, offset_mm + s * o.segment_mm, offset_mm + (s + 1) * o.segment_mm, msd[i],
-                        100.0 * d_ratio[i], 100.0 * s_ratio[i], bool(valid[i])))
+            out.append(
+                (
+                    i,
+                    offset_mm + s * o.segment_mm,
+                    offset_mm + (s + 1) * o.segment_mm,
+                    msd[i],
+                    100.0 * d_ratio[i],
+                    100.0 * s_ratio[i],
+                    bool(valid[i]),
+                )
+            )
     return out
 
 
-def profile_segments(heights: np.ndarray, distance_mm: np.ndarray, options: MPDOptions | None = None,
-                     **kwargs) -> Segments:
+def profile_segments(
+    heights: np.ndarray, distance_mm: np.ndarray, options: MPDOptions | None = None, **kwargs
+) -> Segments:
     """Evaluate the segments of one profile (1-D ``heights``) or of several sharing distances (2-D, one profile
     per row), heights and distances in mm, NaN heights are dropouts. ``options`` or keyword arguments: the fields
     of :class:`MPDOptions`."""
@@ -247,14 +271,27 @@ def profile_segments(heights: np.ndarray, distance_mm: np.ndarray, options: MPDO
             rows += [(i, *r[1:]) for r in _block(zi[keep][None, :], x[keep] - off, o, offset_mm=off)]
     rows.sort(key=lambda r: (r[0], r[1]))
     cols = list(zip(*rows)) if rows else [[]] * 7
-    return Segments(profile=np.asarray(cols[0], dtype=np.int64), start_mm=np.asarray(cols[1], dtype=float),
-                    end_mm=np.asarray(cols[2], dtype=float), msd_mm=np.asarray(cols[3], dtype=float),
-                    dropout_pct=np.asarray(cols[4], dtype=float), spike_pct=np.asarray(cols[5], dtype=float),
-                    valid=np.asarray(cols[6], dtype=bool), trim_start_mm=trim[:, 0], trim_end_mm=trim[:, 1])
+    return Segments(
+        profile=np.asarray(cols[0], dtype=np.int64),
+        start_mm=np.asarray(cols[1], dtype=float),
+        end_mm=np.asarray(cols[2], dtype=float),
+        msd_mm=np.asarray(cols[3], dtype=float),
+        dropout_pct=np.asarray(cols[4], dtype=float),
+        spike_pct=np.asarray(cols[5], dtype=float),
+        valid=np.asarray(cols[6], dtype=bool),
+        trim_start_mm=trim[:, 0],
+        trim_end_mm=trim[:, 1],
+    )
 
 
-def summarise(segments: Segments, *, etd_factor: float = 1.1, name: str = "", profile_mm: float | None = None,
-              segment_mm: float = 100.0) -> MPDResult:
+def summarise(
+    segments: Segments,
+    *,
+    etd_factor: float = 1.1,
+    name: str = "",
+    profile_mm: float | None = None,
+    segment_mm: float = 100.0,
+) -> MPDResult:
     """MPD, SD, counts and ETD of evaluated segments; NaN MPD and one warning when no segment is valid
     (``profile_mm``: the profiles' length, for that warning)."""
     vals = segments.msd_mm[segments.valid]
@@ -262,29 +299,57 @@ def summarise(segments: Segments, *, etd_factor: float = 1.1, name: str = "", pr
     who = f"{name}: " if name else ""
     if n_total == 0:
         length = f"profiles are {profile_mm:.2f} mm long, " if profile_mm is not None else ""
-        log.warning("%sMPD not available: %sshorter than one %g mm segment (at least %g mm needed)", who, length,
-                    segment_mm, MIN_SEGMENT_COVERAGE * segment_mm)
+        log.warning(
+            "%sMPD not available: %sshorter than one %g mm segment (at least %g mm needed)",
+            who,
+            length,
+            segment_mm,
+            MIN_SEGMENT_COVERAGE * segment_mm,
+        )
     elif vals.size == 0:
         log.warning("%sMPD not available: all %d segments are invalid (dropouts or spikes)", who, n_total)
     mpd = float(vals.mean()) if vals.size else np.nan
     sd = float(vals.std(ddof=1)) if vals.size > 1 else np.nan
-    return MPDResult(mpd_mm=mpd, sd_mm=sd, n_segments=n_total, n_invalid_segments=int(n_total - vals.size),
-                     etd_mm=etd_factor * mpd, msd_mm=vals)
+    return MPDResult(
+        mpd_mm=mpd,
+        sd_mm=sd,
+        n_segments=n_total,
+        n_invalid_segments=int(n_total - vals.size),
+        etd_mm=etd_factor * mpd,
+        msd_mm=vals,
+    )
 
 
-def mean_profile_depth(surface: Surface, *, axis: int = 1, segment_mm: float = 100.0, resample_mm: float = 0.5,
-                       lowpass_mm: float | None = 2.4, spike_alpha: float = 3.0, max_dropout_pct: float = 10.0,
-                       max_spike_pct: float = 5.0, detect_plates: bool = False, plate_threshold_mm: float = 30.0,
-                       etd_factor: float = 1.1) -> MPDResult:
+def mean_profile_depth(
+    surface: Surface,
+    *,
+    axis: int = 1,
+    segment_mm: float = 100.0,
+    resample_mm: float = 0.5,
+    lowpass_mm: float | None = 2.4,
+    spike_alpha: float = 3.0,
+    max_dropout_pct: float = 10.0,
+    max_spike_pct: float = 5.0,
+    detect_plates: bool = False,
+    plate_threshold_mm: float = 30.0,
+    etd_factor: float = 1.1,
+) -> MPDResult:
     """MPD (mm) of the profiles of ``surface`` along ``axis`` (1: rows along x, at x = j dx). See the module
     docstring; NaN with one warning when the profiles are shorter than one evaluable segment."""
     if axis not in (0, 1):
         raise ValueError(f"mean_profile_depth: axis must be 0 or 1, got {axis!r}")
     h = surface.heights if axis == 1 else surface.heights.T
     step = surface.dx if axis == 1 else surface.dy
-    o = MPDOptions(segment_mm=segment_mm, resample_mm=resample_mm, lowpass_mm=lowpass_mm, spike_alpha=spike_alpha,
-                   max_dropout_pct=max_dropout_pct, max_spike_pct=max_spike_pct, detect_plates=detect_plates,
-                   plate_threshold_mm=plate_threshold_mm)
+    o = MPDOptions(
+        segment_mm=segment_mm,
+        resample_mm=resample_mm,
+        lowpass_mm=lowpass_mm,
+        spike_alpha=spike_alpha,
+        max_dropout_pct=max_dropout_pct,
+        max_spike_pct=max_spike_pct,
+        detect_plates=detect_plates,
+        plate_threshold_mm=plate_threshold_mm,
+    )
     x = np.arange(h.shape[1]) * step
     segs = profile_segments(h, x, o)
     return summarise(segs, etd_factor=etd_factor, name=surface.name, profile_mm=float(x[-1]), segment_mm=segment_mm)

@@ -10,9 +10,8 @@ from skidsim.errors import ConfigError
 from skidsim.surface import Surface
 
 from .despeckle import METHODS
-from .filters import FILL_METHODS, form_degree
-
 from .features import PRUNING_REFERENCES, feature_parameters, motif_parameters, pruning_threshold
+from .filters import FILL_METHODS, form_degree
 from .furrows import furrow_parameters
 from .height import height_parameters
 from .hybrid import sdq, sdr
@@ -22,16 +21,45 @@ from .spatial import spatial_parameters
 
 #: Parameter name -> unit, in output order.
 UNITS: dict[str, str] = {
-    "Sq": "mm", "Ssk": "1", "Sku": "1", "Sp": "mm", "Sv": "mm", "Sz": "mm", "Sa": "mm",
-    "Sal": "mm", "Str": "1", "Std": "deg",
-    "Sdq": "1", "Sdr": "%",
-    "Vm": "mm^3/mm^2", "Vv": "mm^3/mm^2", "Vmp": "mm^3/mm^2", "Vmc": "mm^3/mm^2", "Vvc": "mm^3/mm^2",
+    "Sq": "mm",
+    "Ssk": "1",
+    "Sku": "1",
+    "Sp": "mm",
+    "Sv": "mm",
+    "Sz": "mm",
+    "Sa": "mm",
+    "Sal": "mm",
+    "Str": "1",
+    "Std": "deg",
+    "Sdq": "1",
+    "Sdr": "%",
+    "Vm": "mm^3/mm^2",
+    "Vv": "mm^3/mm^2",
+    "Vmp": "mm^3/mm^2",
+    "Vmc": "mm^3/mm^2",
+    "Vvc": "mm^3/mm^2",
     "Vvv": "mm^3/mm^2",
-    "Sk": "mm", "Spk": "mm", "Svk": "mm", "Smr1": "%", "Smr2": "%", "Sa1": "mm^3/mm^2", "Sa2": "mm^3/mm^2",
-    "Spc": "1/mm", "S10z": "mm", "S5p": "mm", "S5v": "mm", "Spd": "1/mm^2", "Shv": "mm^3",
-    "Fdmax": "mm", "Fdmean": "mm", "Fden": "cm/cm^2",
-    "motif_count": "1", "motif_threshold": "mm", "motif_mean_volume": "mm^3",
-    "motif_mean_height_surface_ratio": "mm/mm^2", "motif_mean_area": "mm^2",
+    "Sk": "mm",
+    "Spk": "mm",
+    "Svk": "mm",
+    "Smr1": "%",
+    "Smr2": "%",
+    "Sa1": "mm^3/mm^2",
+    "Sa2": "mm^3/mm^2",
+    "Spc": "1/mm",
+    "S10z": "mm",
+    "S5p": "mm",
+    "S5v": "mm",
+    "Spd": "1/mm^2",
+    "Shv": "mm^3",
+    "Fdmax": "mm",
+    "Fdmean": "mm",
+    "Fden": "cm/cm^2",
+    "motif_count": "1",
+    "motif_threshold": "mm",
+    "motif_mean_volume": "mm^3",
+    "motif_mean_height_surface_ratio": "mm/mm^2",
+    "motif_mean_area": "mm^2",
 }
 
 GROUPS = {
@@ -41,8 +69,13 @@ GROUPS = {
     "material_ratio": ("Vm", "Vv", "Vmp", "Vmc", "Vvc", "Vvv", "Sk", "Spk", "Svk", "Smr1", "Smr2", "Sa1", "Sa2"),
     "features": ("Spc", "S10z", "S5p", "S5v", "Spd", "Shv"),
     "furrows": ("Fdmax", "Fdmean", "Fden"),
-    "motifs": ("motif_count", "motif_threshold", "motif_mean_volume", "motif_mean_height_surface_ratio",
-               "motif_mean_area"),
+    "motifs": (
+        "motif_count",
+        "motif_threshold",
+        "motif_mean_volume",
+        "motif_mean_height_surface_ratio",
+        "motif_mean_area",
+    ),
 }
 
 
@@ -127,9 +160,13 @@ class TextureOptions:
         """Keyword arguments of :func:`skidsim.texture.mean_profile_depth` from the ``mpd_*`` fields (checked)."""
         from .mpd import MPDOptions
 
-        kw = dict(segment_mm=float(self.mpd_segment_mm), spike_alpha=float(self.mpd_spike_alpha),
-                  detect_plates=bool(self.mpd_detect_plates), plate_threshold_mm=float(self.mpd_plate_threshold_mm),
-                  max_dropout_pct=float(self.mpd_max_dropout_pct))
+        kw = dict(
+            segment_mm=float(self.mpd_segment_mm),
+            spike_alpha=float(self.mpd_spike_alpha),
+            detect_plates=bool(self.mpd_detect_plates),
+            plate_threshold_mm=float(self.mpd_plate_threshold_mm),
+            max_dropout_pct=float(self.mpd_max_dropout_pct),
+        )
         try:
             MPDOptions(**kw)
         except ConfigError as exc:
@@ -137,7 +174,7 @@ class TextureOptions:
         return {"axis": self.mpd_axis, **kw}
 
     @classmethod
-    def from_dict(cls, d: dict | None) -> "TextureOptions":
+    def from_dict(cls, d: dict | None) -> TextureOptions:
         """Build from a config mapping (the workflow's ``texture:`` section); unknown keys or bad values raise
         :class:`skidsim.errors.ConfigError` naming the key and what was expected."""
         d = dict(d or {})
@@ -152,8 +189,9 @@ class TextureOptions:
         return cls(**d)
 
 
-def areal_parameters(surface: Surface, band: str = "raw", options: TextureOptions | dict | None = None
-                     ) -> dict[str, tuple[float, str]]:
+def areal_parameters(
+    surface: Surface, band: str = "raw", options: TextureOptions | dict | None = None
+) -> dict[str, tuple[float, str]]:
     """All areal parameters of one band surface: ``name -> (value, unit)``.
 
     ``surface`` must be complete (no NaN; run :func:`skidsim.texture.fill_invalid` / ``separate_bands``
@@ -162,8 +200,10 @@ def areal_parameters(surface: Surface, band: str = "raw", options: TextureOption
     opt = options if isinstance(options, TextureOptions) else TextureOptions.from_dict(options)
     z = surface.heights
     if not np.isfinite(z).all():
-        raise ValueError(f"areal_parameters: surface {surface.name!r} band {band!r} has invalid points; "
-                         "fill them first (fill_invalid)")
+        raise ValueError(
+            f"areal_parameters: surface {surface.name!r} band {band!r} has invalid points; "
+            "fill them first (fill_invalid)"
+        )
     if min(z.shape) < 8:
         raise ValueError(f"areal_parameters: surface {surface.name!r} band {band!r} is {z.shape}, need >= 8x8")
     dx, dy = surface.dx, surface.dy
@@ -186,16 +226,35 @@ def areal_parameters(surface: Surface, band: str = "raw", options: TextureOption
         hills = segment(-zc, t, dx, dy)
     if "features" in g:
         dales = segment(zc, t, dx, dy)
-        out.update(feature_parameters(zc, dx, dy, pruning_pct=opt.pruning_pct,
-                                      pruning_reference=opt.pruning_reference, exclude_edge=opt.exclude_edge,
-                                      spc_half_window=opt.spc_half_window, hills=hills, dales=dales))
+        out.update(
+            feature_parameters(
+                zc,
+                dx,
+                dy,
+                pruning_pct=opt.pruning_pct,
+                pruning_reference=opt.pruning_reference,
+                exclude_edge=opt.exclude_edge,
+                spc_half_window=opt.spc_half_window,
+                hills=hills,
+                dales=dales,
+            )
+        )
         del dales
     if "furrows" in g:
-        out.update(furrow_parameters(zc, dx, dy, window_mm=opt.furrow_window_mm,
-                                     min_depth_pct=opt.furrow_min_depth_pct))
+        out.update(
+            furrow_parameters(zc, dx, dy, window_mm=opt.furrow_window_mm, min_depth_pct=opt.furrow_min_depth_pct)
+        )
     if "motifs" in g:
         same = opt.motif_pruning_pct == opt.pruning_pct
-        out.update(motif_parameters(zc, dx, dy, pruning_pct=opt.motif_pruning_pct,
-                                    pruning_reference=opt.pruning_reference, exclude_edge=opt.exclude_edge,
-                                    hills=hills if same else None))
+        out.update(
+            motif_parameters(
+                zc,
+                dx,
+                dy,
+                pruning_pct=opt.motif_pruning_pct,
+                pruning_reference=opt.pruning_reference,
+                exclude_edge=opt.exclude_edge,
+                hills=hills if same else None,
+            )
+        )
     return {k: (float(out[k]), UNITS[k]) for k in UNITS if k in out}

@@ -75,7 +75,7 @@ class QualityOptions:
             bad("min_usable_length_mm", "a length >= 0 mm or null")
 
     @classmethod
-    def from_dict(cls, d: dict | None, strip_length_mm: float | None = None) -> "QualityOptions":
+    def from_dict(cls, d: dict | None, strip_length_mm: float | None = None) -> QualityOptions:
         """From the ``quality:`` config block; ``strip_length_mm`` (mesh.length_mm) fills a null
         ``min_usable_length_mm``. Unknown keys raise :class:`ConfigError`."""
         d = dict(d or {})
@@ -141,8 +141,14 @@ def usable_length_mm(surface: Surface, min_column_valid_pct: float = 90.0) -> fl
     return float((runs.max() - 1) * surface.dx)
 
 
-def scan_quality(site: str, surface: Surface, replaced: np.ndarray, step_mm: float, step_source: str,
-                 min_column_valid_pct: float = 90.0) -> ScanQuality:
+def scan_quality(
+    site: str,
+    surface: Surface,
+    replaced: np.ndarray,
+    step_mm: float,
+    step_source: str,
+    min_column_valid_pct: float = 90.0,
+) -> ScanQuality:
     """The quality measures of ``surface`` (the scan as the despeckle saw it) given the despeckle's mask of
     replaced points ``replaced`` and the height step it used (:class:`~skidsim.texture.despeckle.DespeckleResult`)."""
     if replaced.shape != surface.shape:
@@ -151,12 +157,19 @@ def scan_quality(site: str, surface: Surface, replaced: np.ndarray, step_mm: flo
     _, n_spikes = ndimage.label(replaced, structure=np.ones((3, 3), dtype=bool))
     sx, sy = plane_slopes(surface)
     return ScanQuality(
-        site=site, n_points=int(n), dropout_pct=100.0 * surface.invalid_fraction,
-        replaced_pct=100.0 * float(replaced.sum()) / n, height_step_mm=float(step_mm),
-        height_step_source=step_source, spikes_found=int(n_spikes),
+        site=site,
+        n_points=int(n),
+        dropout_pct=100.0 * surface.invalid_fraction,
+        replaced_pct=100.0 * float(replaced.sum()) / n,
+        height_step_mm=float(step_mm),
+        height_step_source=step_source,
+        spikes_found=int(n_spikes),
         tilt_deg=float(np.degrees(np.arctan(np.hypot(sx, sy)))),
-        tilt_x_mm_per_m=1000.0 * sx, tilt_y_mm_per_m=1000.0 * sy,
-        usable_length_mm=usable_length_mm(surface, min_column_valid_pct), scan_length_mm=surface.width_mm)
+        tilt_x_mm_per_m=1000.0 * sx,
+        tilt_y_mm_per_m=1000.0 * sy,
+        usable_length_mm=usable_length_mm(surface, min_column_valid_pct),
+        scan_length_mm=surface.width_mm,
+    )
 
 
 def breaches(q: ScanQuality, opt: QualityOptions) -> list[str]:
@@ -169,8 +182,10 @@ def breaches(q: ScanQuality, opt: QualityOptions) -> list[str]:
     if not q.tilt_deg <= opt.max_tilt_deg:
         out.append(f"tilt_deg {q.tilt_deg:.3g} deg above the limit {opt.max_tilt_deg:g} deg")
     if opt.min_usable_length_mm is not None and q.usable_length_mm < opt.min_usable_length_mm:
-        out.append(f"usable_length_mm {q.usable_length_mm:.4g} mm below the limit {opt.min_usable_length_mm:g} mm "
-                   f"(columns with >= {opt.min_column_valid_pct:g} % valid points)")
+        out.append(
+            f"usable_length_mm {q.usable_length_mm:.4g} mm below the limit {opt.min_usable_length_mm:g} mm "
+            f"(columns with >= {opt.min_column_valid_pct:g} % valid points)"
+        )
     return out
 
 
@@ -182,8 +197,11 @@ def check_quality(q: ScanQuality, opt: QualityOptions, logger: logging.Logger | 
     if not found:
         return found
     if opt.action == "stop":
-        raise ScanQualityError(f"scan quality of site {q.site!r}: " + "; ".join(found)
-                               + " (quality.action: stop; raise the limit in config quality: or set action: warn)")
+        raise ScanQualityError(
+            f"scan quality of site {q.site!r}: "
+            + "; ".join(found)
+            + " (quality.action: stop; raise the limit in config quality: or set action: warn)"
+        )
     lg = logger or log
     for b in found:
         lg.warning("SCAN QUALITY site %s: %s", q.site, b)
@@ -206,8 +224,11 @@ def quality_table(measures: list[ScanQuality], opt: QualityOptions, logger: logg
                 for b in found:
                     (logger or log).warning("SCAN QUALITY site %s: %s", q.site, b)
     if stops and opt.action == "stop":
-        raise ScanQualityError(f"scan quality: {len(stops)} of {len(measures)} sites beyond the limits: "
-                               + " | ".join(stops) + " (quality.action: stop; raise the limits in config quality: "
-                               "or set action: warn)")
+        raise ScanQualityError(
+            f"scan quality: {len(stops)} of {len(measures)} sites beyond the limits: "
+            + " | ".join(stops)
+            + " (quality.action: stop; raise the limits in config quality: "
+            "or set action: warn)"
+        )
     columns = [f.name for f in fields(ScanQuality)] + ["flags", "status"]
     return pd.DataFrame(rows, columns=columns)

@@ -42,7 +42,7 @@ def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
     code = np.full(d.shape, -1, dtype=np.int8)
     better = np.empty(d.shape, dtype=bool)
     for k, (oy, ox) in enumerate(_OFFSETS):
-        nb = pad[1 + oy:1 + oy + rows, 1 + ox:1 + ox + cols]
+        nb = pad[1 + oy : 1 + oy + rows, 1 + ox : 1 + ox + cols]
         np.less(nb, low, out=better)  # strictly lower than the lowest so far: first offset wins ties
         np.minimum(low, nb, out=low)
         np.copyto(code, np.int8(k), where=better)
@@ -75,10 +75,12 @@ def boundary_pairs(labels: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.nd
     (0-based basin ids). Consecutive repeats of a pair along a boundary are reduced to their minimum pour;
     the result is not fully deduplicated."""
     las, lbs, pours = [], [], []
-    for sa, sb in (((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
-                   ((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
-                   ((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))),
-                   ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1)))):
+    for sa, sb in (
+        ((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
+        ((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
+        ((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))),
+        ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))),
+    ):
         la, lb = labels[sa], labels[sb]
         m = la != lb
         x, y = la[m], lb[m]
@@ -89,8 +91,7 @@ def boundary_pairs(labels: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.nd
         las.append(x)
         lbs.append(y)
         pours.append(p)
-    return (np.concatenate(las).astype(np.int64) - 1, np.concatenate(lbs).astype(np.int64) - 1,
-            np.concatenate(pours))
+    return (np.concatenate(las).astype(np.int64) - 1, np.concatenate(lbs).astype(np.int64) - 1, np.concatenate(pours))
 
 
 def dedupe_edges(a: np.ndarray, b: np.ndarray, pour: np.ndarray, n: int):
@@ -215,6 +216,14 @@ def segment(d: np.ndarray, threshold_mm: float, dx: float, dy: float, keep_label
     srt = np.argsort(crit, kind="stable")
     inv = np.empty(m, dtype=np.int64)
     inv[srt] = np.arange(m)
-    return Segmentation(critical_index=sink[roots][srt], critical=crit[srt], base=base[srt], area_mm2=area[srt],
-                        volume_mm3=vol[srt], touches_edge=edge[srt], threshold_mm=t,
-                        motif_of_basin=inv[motif_of_basin], labels=labels if keep_labels else np.empty(0, np.int32))
+    return Segmentation(
+        critical_index=sink[roots][srt],
+        critical=crit[srt],
+        base=base[srt],
+        area_mm2=area[srt],
+        volume_mm3=vol[srt],
+        touches_edge=edge[srt],
+        threshold_mm=t,
+        motif_of_basin=inv[motif_of_basin],
+        labels=labels if keep_labels else np.empty(0, np.int32),
+    )

@@ -11,8 +11,9 @@ Conventions (docs/texture.md):
   shortest decay length; Str = Sal / longest decay length.
 * **Border**: a direction that does not cross ``s`` before leaving the lag domain (half the scan extent by
   default, ``max_lag_fraction = 0.5``: beyond it fewer than half the points overlap and the unbiased estimator
-  is noisy; the zero padding is sized to that domain) has no decay length. If no direction crosses, Sal is NaN; if some direction does not cross, Str is
-  NaN (``on_border="nan"``, default) or the bound Sal / (longest measured length) (``on_border="bound"``).
+  is noisy; the zero padding is sized to that domain) has no decay length. If no direction crosses, Sal is NaN;
+  if some direction does not cross, Str is NaN (``on_border="nan"``, default) or the bound
+  Sal / (longest measured length) (``on_border="bound"``).
 * **Std** (deg): the direction, counter-clockwise from +x with +y along increasing row index, of the maximum of
   the angular power spectrum: the sum of |F|^2 (power spectrum of the zero-padded heights) over radial
   frequencies in angular bins of ``std_step_deg`` over [0, 180). Its resolution is limited by the frequency
@@ -42,8 +43,7 @@ class SpatialResult:
     decay_mm: np.ndarray
 
 
-def autocorrelation(z: np.ndarray, workers: int = 1, return_spectrum: bool = False,
-                    max_lag_fraction: float = 1.0):
+def autocorrelation(z: np.ndarray, workers: int = 1, return_spectrum: bool = False, max_lag_fraction: float = 1.0):
     """Unbiased linear ACF (normalised, ACF(0)=1) of a complete height array for lags up to
     ``max_lag_fraction`` of the extent (``L = floor(f (n - 1))`` points per axis); the zero lag sits at index
     ``(Ly, Lx)`` of the returned ``(2 Ly + 1, 2 Lx + 1)`` array. The zero padding is ``L`` points per axis,
@@ -65,8 +65,8 @@ def autocorrelation(z: np.ndarray, workers: int = 1, return_spectrum: bool = Fal
     del spec
     full = sfft.irfft2(power, s=shape, workers=workers)
     del power
-    ry = np.r_[shape[0] - ly:shape[0], 0:ly + 1]
-    rx = np.r_[shape[1] - lx:shape[1], 0:lx + 1]
+    ry = np.r_[shape[0] - ly : shape[0], 0 : ly + 1]
+    rx = np.r_[shape[1] - lx : shape[1], 0 : lx + 1]
     acf = full[np.ix_(ry, rx)]
     del full
     ny = rows - np.abs(np.arange(-ly, ly + 1))
@@ -79,8 +79,9 @@ def autocorrelation(z: np.ndarray, workers: int = 1, return_spectrum: bool = Fal
     return acf
 
 
-def decay_lengths(acf: np.ndarray, dx: float, dy: float, s: float = 0.2, n_angles: int = 720,
-                  ray_step: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+def decay_lengths(
+    acf: np.ndarray, dx: float, dy: float, s: float = 0.2, n_angles: int = 720, ray_step: float = 0.25
+) -> tuple[np.ndarray, np.ndarray]:
     """Decay length (mm, NaN if no crossing within the lag domain of ``acf``, zero lag at its centre) to
     threshold ``s`` along ``n_angles`` directions in [0, 180) deg (angle from +x towards +y)."""
     r0 = (acf.shape[0] - 1) // 2
@@ -118,8 +119,9 @@ def decay_lengths(acf: np.ndarray, dx: float, dy: float, s: float = 0.2, n_angle
         d = np.arange(start, min(start + chunk, n_steps)) * h  # mm
         rows = r0 + (uy[idx, None] * d[None, :]) / dy
         cols = c0 + (ux[idx, None] * d[None, :]) / dx
-        vals = ndimage.map_coordinates(coef, [rows.ravel() - ra, cols.ravel() - ca], order=3, mode="nearest",
-                                       prefilter=False)
+        vals = ndimage.map_coordinates(
+            coef, [rows.ravel() - ra, cols.ravel() - ca], order=3, mode="nearest", prefilter=False
+        )
         vals = vals.reshape(idx.size, d.size)
         inside = d[None, :] <= tmax[idx, None]
         below = (vals < s) & inside
@@ -152,8 +154,7 @@ def _angular_bins(shape: tuple[int, int], dx: float, dy: float, step_deg: float)
     return b
 
 
-def texture_direction(amp: np.ndarray, shape: tuple[int, int], dx: float, dy: float,
-                      step_deg: float = 0.5) -> float:
+def texture_direction(amp: np.ndarray, shape: tuple[int, int], dx: float, dy: float, step_deg: float = 0.5) -> float:
     """Std (deg in [0, 180)): direction of the maximum angular amplitude density of the rfft2 amplitude
     ``amp`` of a zero-padded grid ``shape``."""
     nb = int(round(180.0 / step_deg))
@@ -162,9 +163,17 @@ def texture_direction(amp: np.ndarray, shape: tuple[int, int], dx: float, dy: fl
     return float((np.argmax(dens) + 0.5) * step_deg)
 
 
-def spatial_parameters(z: np.ndarray, dx: float, dy: float, s: float = 0.2, n_angles: int = 720,
-                       on_border: str = "nan", std_step_deg: float = 0.5, workers: int = 1,
-                       max_lag_fraction: float = 0.5) -> SpatialResult:
+def spatial_parameters(
+    z: np.ndarray,
+    dx: float,
+    dy: float,
+    s: float = 0.2,
+    n_angles: int = 720,
+    on_border: str = "nan",
+    std_step_deg: float = 0.5,
+    workers: int = 1,
+    max_lag_fraction: float = 0.5,
+) -> SpatialResult:
     """Sal (mm), Str, Std (deg) of a complete height array (mm); see the module docstring."""
     if on_border not in ("nan", "bound"):
         raise ValueError(f"on_border must be 'nan' or 'bound', got {on_border!r}")

@@ -3,11 +3,13 @@
 The study's model is ``SN_sim(v) = g * mu(v)`` with the exponential-decay law
 ``mu(s) = mu_k + (mu_s - mu_k) exp(-alpha s)`` (slip speed ``s`` in m/s, ``alpha`` in s/m, ``g`` the site's
 geometric factor from the FE, ~1). Every extension below is a documented formula that modifies that curve;
-none needs the FE except :class:`ViscoelasticFE`, a flag the workflow acts on (:mod:`skidsim.fe_extension`).
+none needs the FE except :class:`ViscoelasticFE`, a flag the workflow acts on
+(:mod:`skidsim.criticism.fe_extension`).
 See ``docs/model-criticism.md`` for the formulas, sources and conventions.
 
 * :class:`TemperatureShift` -- time-temperature superposition (Williams, Landel & Ferry 1955; Grosch 1963):
-  ``mu(v, T) = b_T mu_ref(a_T v)`` with a linearised vertical shift ``b_T = 1 + k_T (T - T_anchor)`` (Ferry 1980), ``log10 a_T = -C1 (T - T_r) / (C2 + T - T_r)`` with the universal constants
+  ``mu(v, T) = b_T mu_ref(a_T v)`` with a linearised vertical shift ``b_T = 1 + k_T (T - T_anchor)`` (Ferry 1980),
+  ``log10 a_T = -C1 (T - T_r) / (C2 + T - T_r)`` with the universal constants
   ``C1 = 8.86``, ``C2 = 101.6 K``. The fitted parameter is the reference temperature ``T_r`` (deg C), which sets
   the sensitivity ``d log10 a_T / dT``. Temperatures are centred: a site at the anchor temperature (mean of the
   training sites) is unchanged, i.e. the effective slip speed is ``s * a_T(T_i) / a_T(T_anchor)``.
@@ -25,10 +27,11 @@ See ``docs/model-criticism.md`` for the formulas, sources and conventions.
 * :class:`SharedShape` -- a residual shape shared by all sites (the functional form of mu(v) is wrong): an additive
   speed profile ``h(v)``, the mean training residual, linearly interpolated in speed.
 * :class:`ViscoelasticFE` -- hook for viscoelastic rubber in the FE (Prony series; hysteresis on macrotexture,
-  Persson 2001, Klueppel & Heinrich 2000). Not fitted here: :mod:`skidsim.fe_extension` and the workflow's ``fe_gain`` rule
-  recalibrate with the Prony series and measure the gain.
+  Persson 2001, Klueppel & Heinrich 2000). Not fitted here: :mod:`skidsim.criticism.fe_extension` and the workflow's
+  ``fe_gain`` rule recalibrate with the Prony series and measure the gain.
 
-All curve functions are vectorised NumPy; every random draw elsewhere takes an explicit seed.
+:func:`apply_extension` chooses the extension of a named cause (:class:`ExtendedModel`). All curve functions are
+vectorised NumPy; every random draw elsewhere takes an explicit seed.
 """
 
 from __future__ import annotations
@@ -37,8 +40,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ConfigError, InputError
-from .friction import KMH_PER_MS
+from ..errors import ConfigError, InputError
+from ..friction import KMH_PER_MS
+from .causes import Cause
+from .covariates import DEFAULT_EXCLUDE, find_mpd_column, site_covariates
 
 #: Universal WLF constants (Williams, Landel & Ferry 1955).
 WLF_C1 = 8.86
@@ -53,6 +58,7 @@ IFI_SP_B_KMH_PER_MM = 89.7
 # ----------------------------------------------------------------------------------------------------------------
 # closed-form pieces
 # ----------------------------------------------------------------------------------------------------------------
+
 
 def wlf_log10_shift(temperature_c, t_ref_c: float, c1: float = WLF_C1, c2_k: float = WLF_C2_K):
     """log10 a_T of the WLF equation; temperatures in deg C (differences in K). Raises if T - T_r <= -C2."""
@@ -89,8 +95,11 @@ def fit_exp_curves(speed_kmh, y, *, alpha_bounds=(1e-4, 3.0), n_grid: int = 240)
         v = np.broadcast_to(v, y.shape)
     w = np.isfinite(y) & np.isfinite(v)
     if np.any(w.sum(axis=1) < 3):
-        raise InputError(None, "at least 3 finite (speed_kmh, mu) points per site to fit the exponential law",
-                         got=int(w.sum(axis=1).min()))
+        raise InputError(
+            None,
+            "at least 3 finite (speed_kmh, mu) points per site to fit the exponential law",
+            got=int(w.sum(axis=1).min()),
+        )
     s = np.where(w, v, 0.0) / KMH_PER_MS
     yy = np.where(w, y, 0.0)
     lo, hi = np.log(alpha_bounds[0]), np.log(alpha_bounds[1])
@@ -125,13 +134,14 @@ def fit_exp_curves(speed_kmh, y, *, alpha_bounds=(1e-4, 3.0), n_grid: int = 240)
 # extensions
 # ----------------------------------------------------------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class TemperatureShift:
     """WLF time-temperature shift of the slip speed, effective speed ``v a_T(T_i) / a_T(T_anchor)``, and a vertical
     (amplitude) shift ``b_T = 1 + level_per_c (T_i - T_anchor)``: ``mu(v, T) = b_T mu_ref(v a_T / a_T(T_anchor))``.
 
     ``c1`` (-), ``c2_k`` (K) are the universal WLF constants; ``t_ref_c`` (deg C) the reference temperature
-    (fitted by :func:`skidsim.diagnosis.recalibrate` within ``t_ref_bounds_c``); ``level_per_c`` (1/K) the
+    (fitted by :func:`skidsim.criticism.recalibration.recalibrate` within ``t_ref_bounds_c``); ``level_per_c`` (1/K) the
     vertical shift slope, fitted within ``level_bounds_per_c`` when ``fit_level`` (else held at its value; 0 =
     the pure WLF speed shift); ``column`` the temperature
     column (deg C) of sites.csv. ``texture_pcs >= 0`` (cause found by the texture-adjusted test): between sites the
@@ -161,8 +171,9 @@ class TemperatureShift:
     def speed_factor(self, temperature_c, anchor_c: float, t_ref_c: float | None = None):
         """``a_T(T) / a_T(T_anchor)`` (dimensionless) for temperatures in deg C."""
         tr = self.t_ref_c if t_ref_c is None else t_ref_c
-        return 10.0 ** (wlf_log10_shift(temperature_c, tr, self.c1, self.c2_k)
-                        - wlf_log10_shift(anchor_c, tr, self.c1, self.c2_k))
+        return 10.0 ** (
+            wlf_log10_shift(temperature_c, tr, self.c1, self.c2_k) - wlf_log10_shift(anchor_c, tr, self.c1, self.c2_k)
+        )
 
     def t_ref_bounds_c(self, temperatures_c) -> tuple[float, float]:
         """Search interval for T_r (deg C): from 'no effect' (T_max - 400) up to 5 K inside the WLF pole."""
@@ -191,8 +202,7 @@ class DrainageIFI:
 
     def __post_init__(self):
         if self.form not in DRAINAGE_FORMS + ("auto",):
-            raise ConfigError(f"DrainageIFI.form: expected one of {list(DRAINAGE_FORMS) + ['auto']}, "
-                              f"got {self.form!r}")
+            raise ConfigError(f"DrainageIFI.form: expected one of {list(DRAINAGE_FORMS) + ['auto']}, got {self.form!r}")
 
     def inverse_speed_constant(self, mpd_mm):
         """1 / Sp in h/km."""
@@ -226,7 +236,7 @@ class CovariateTerm:
     of such an effect into its texture coefficients, so the prediction's site level (``on="level"``) or speed
     slope (``on="slope"``) is replaced by that of the linear model ``[1, PC_1..k, z]`` fitted on the training
     sites' measured site means (slopes), k = ``texture_pcs`` leading texture principal components; the texture
-    model's speed profile is kept (``skidsim.diagnosis._refit_correction``)."""
+    model's speed profile is kept (``skidsim.criticism.recalibration.refit_correction``)."""
 
     name: str
     on: str = "level"
@@ -253,8 +263,50 @@ class ViscoelasticFE:
     Persson 2001 J. Chem. Phys. 115, 3840; Klueppel & Heinrich 2000 Rubber Chem. Technol. 73, 578).
 
     Not fitted here: the workflow maps :attr:`solver_flags` onto the solver's Prony option
-    (``skidsim.solver`` ``SolverConfig.prony_g`` / ``prony_tau_s``, owned by the solver) and re-runs calibration. The law-level diagnosis reports it as the recommended FE change when the
-    residual shape is shared by all sites or tied to macrotexture."""
+    (``skidsim.solver`` ``SolverConfig.prony_g`` / ``prony_tau_s``, owned by the solver) and re-runs calibration.
+    The law-level diagnosis reports it as the recommended FE change when the residual shape is shared by all sites
+    or tied to macrotexture."""
 
     solver_flags: dict = field(default_factory=lambda: {"viscoelastic": True})
     physical: bool = True
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the extension of a named cause
+# ----------------------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ExtendedModel:
+    """The extension chosen for a named cause: ``extension`` (physical where one applies), ``fallback`` (generic
+    term, also evaluated), ``fe_hook`` (solver flags for an FE-level extension, not evaluated here)."""
+
+    cause: Cause
+    extension: object
+    fallback: object | None = None
+    fe_hook: ViscoelasticFE | None = None
+
+
+def apply_extension(
+    cause: Cause, sites, texture_wide=None, *, speed_bin_kmh: float = 10.0, exclude=DEFAULT_EXCLUDE
+) -> ExtendedModel:
+    """Choose the extension for a named cause.
+
+    temperature (name contains 'temp') -> :class:`TemperatureShift`; MPD, or a macrotexture cause whose correlated
+    group holds the MPD column, interacting with speed -> :class:`DrainageIFI`; functional form ->
+    :class:`SharedShape` plus the :class:`ViscoelasticFE` hook; anything else -> :class:`CovariateTerm` (on the
+    level for ``main``, on the speed slope for ``x_speed``). Physical extensions carry the generic term as
+    ``fallback``.
+    """
+    if cause.kind == "functional_form":
+        return ExtendedModel(cause, SharedShape(speed_bin_kmh=speed_bin_kmh), None, ViscoelasticFE())
+    pcs = cause.texture_pcs_cv if cause.dtype == "numeric" else -1
+    generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope", texture_pcs=pcs)
+    name = cause.variable.lower()
+    if "temp" in name and cause.dtype == "numeric":
+        return ExtendedModel(cause, TemperatureShift(column=cause.variable, texture_pcs=pcs), generic)
+    cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
+    mpd = find_mpd_column(cov)
+    if mpd is not None and cause.kind == "x_speed" and (cause.variable == mpd or mpd in cause.group or "macro" in name):
+        return ExtendedModel(cause, DrainageIFI(mpd_column=mpd), generic, ViscoelasticFE())
+    return ExtendedModel(cause, generic, None)

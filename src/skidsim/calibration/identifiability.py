@@ -1,4 +1,4 @@
-"""What a DFT trace determines of the exponential-decay law, per site (issue 25, item 2).
+"""What a DFT trace determines of the exponential-decay law, per site.
 
 A back-calculation (:mod:`skidsim.calibration`) returns one law ``mu(s) = mu_k + (mu_s - mu_k) exp(-alpha s)``
 per site. This module says how far to trust it, from what the calibration already produced (the trace, the
@@ -45,87 +45,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, fields
-from typing import Any
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import pandas as pd
 from scipy.optimize import minimize_scalar
 from scipy.stats import chi2
 
-from skidsim.calibration import DEFAULT_BOUNDS, CalibrationResult, fit_exponential_decay, measured_arrays, measured_at
-from skidsim.errors import ConfigError, InputError
+from skidsim.calibration.law_fit import box_ls2_many, fit_exponential_decay
+from skidsim.calibration.measured import measured_arrays, measured_at
+from skidsim.calibration.options import DEFAULT_BOUNDS, PARAMS, IdentifiabilityOptions
+from skidsim.calibration.result import CalibrationResult
+from skidsim.errors import InputError
 from skidsim.friction import KMH_PER_MS, ExponentialDecay
 
-PARAMS = ("mu_s", "mu_k", "alpha")
 FLAGS = ("not_converged", "at_bound", "outside_law", "fe_not_smooth", "fit_beyond_noise")
-
-
-@dataclass(frozen=True)
-class IdentifiabilityOptions:
-    """Thresholds of the per-site quality and identifiability record (config ``calibration.identifiability``).
-
-    noise_window_kmh: half-width, km/h, of the local quadratic smooth the trace noise is measured around.
-    noise_min_points: fewest trace points in the analysis range for a noise estimate (fewer: sigma is NaN and
-        the flags that need it are not decided).
-    fit_noise_factor: ``fit_beyond_noise`` when the FE RMSE vs measured (calibration or validation speeds)
-        exceeds this many sigma.
-    outside_law_factor: ``outside_law`` when the RMSE of the law family's best fit to the trace points (wide
-        bounds ``wide_mu_max``, ``wide_alpha_max_s_per_m``, through the calibration's FE mapping) exceeds this
-        many sigma.
-    at_bound_rel_tol: a parameter within this fraction of its bound width of a bound is ``at_bound``.
-    fe_miss_max: SN; ``fe_not_smooth`` when |SN_FE - SN_surrogate| exceeds it in a verification run after the
-        surrogate was corrected at least once (iteration >= 2) or at a validation speed.
-    identified_rel_halfwidth: a parameter or an eigen-direction is identified when its 95 % half-width is at
-        most this fraction of the bound width.
-    identified_halfwidth_mu: a curve combination (mu units) is identified when its 95 % half-width is at most this.
-    profile_points: grid points per parameter of the profile likelihood over the calibration bounds.
-    alpha_grid_points: alpha grid (over its bounds) the other parameters are profiled on.
-    confidence: level of the profile intervals and half-widths (0.95).
-    wide_mu_max, wide_alpha_max_s_per_m: the law family's reach for ``outside_law`` (mu in [0, wide_mu_max],
-        alpha in [0, wide_alpha_max_s_per_m] s/m).
-    """
-
-    noise_window_kmh: float = 15.0
-    noise_min_points: int = 12
-    fit_noise_factor: float = 2.0
-    outside_law_factor: float = 1.5
-    at_bound_rel_tol: float = 0.01
-    fe_miss_max: float = 0.03
-    identified_rel_halfwidth: float = 0.05
-    identified_halfwidth_mu: float = 0.02
-    profile_points: int = 121
-    alpha_grid_points: int = 801
-    confidence: float = 0.95
-    wide_mu_max: float = 2.0
-    wide_alpha_max_s_per_m: float = 10.0
-
-    def __post_init__(self):
-        pos = ("noise_window_kmh", "fit_noise_factor", "outside_law_factor", "fe_miss_max",
-               "identified_rel_halfwidth", "identified_halfwidth_mu", "wide_mu_max", "wide_alpha_max_s_per_m")
-        for name in pos:
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ConfigError(f"calibration.identifiability.{name}: expected a positive number, got {v!r}")
-        if not (0 <= self.at_bound_rel_tol < 0.5):
-            raise ConfigError(f"calibration.identifiability.at_bound_rel_tol: expected 0 <= x < 0.5, "
-                              f"got {self.at_bound_rel_tol!r}")
-        if not (0 < self.confidence < 1):
-            raise ConfigError(f"calibration.identifiability.confidence: expected 0 < x < 1, got {self.confidence!r}")
-        for name, lo in (("noise_min_points", 5), ("profile_points", 11), ("alpha_grid_points", 51)):
-            if int(getattr(self, name)) < lo:
-                raise ConfigError(f"calibration.identifiability.{name}: expected an integer >= {lo}, "
-                                  f"got {getattr(self, name)!r}")
-
-    @classmethod
-    def from_config(cls, cfg: Mapping | None) -> "IdentifiabilityOptions":
-        """From the config mapping (None or {}: defaults); unknown keys raise :class:`ConfigError`."""
-        cfg = dict(cfg or {})
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(cfg) - known)
-        if unknown:
-            raise ConfigError(f"calibration.identifiability: unknown key(s) {unknown}; known: {sorted(known)}")
-        return cls(**cfg)
 
 
 @dataclass(frozen=True)
@@ -139,11 +73,11 @@ class SurrogateMap:
     d_kmh: tuple[float, ...]
 
     @classmethod
-    def identity(cls) -> "SurrogateMap":
+    def identity(cls) -> SurrogateMap:
         return cls((40.0,), (0.0,), (1.0,), (0.0,))
 
     @classmethod
-    def from_result(cls, result: CalibrationResult) -> "SurrogateMap":
+    def from_result(cls, result: CalibrationResult) -> SurrogateMap:
         """The final surrogate of an ``ours`` result; the identity for a result without one (the study)."""
         s = result.settings or {}
         if not all(k in s for k in ("speeds_kmh", "b")):
@@ -151,12 +85,18 @@ class SurrogateMap:
         v = tuple(float(x) for x in s["speeds_kmh"])
         n = len(v)
         a = tuple(float(x) for x in (s.get("a") or [0.0] * n))
-        d = tuple(float(x) for x in (s.get("slip_offsets_kmh") or [0.0] * n)) if s.get("model", "slip") == "slip" \
+        d = (
+            tuple(float(x) for x in (s.get("slip_offsets_kmh") or [0.0] * n))
+            if s.get("model", "slip") == "slip"
             else (0.0,) * n
+        )
         b = tuple(float(x) for x in s["b"])
         if not (len(a) == len(b) == len(d) == n):
-            raise InputError(None, "surrogate settings a, b, slip_offsets_kmh of one length per calibration speed",
-                             got={"speeds_kmh": v, "a": a, "b": b, "d": d})
+            raise InputError(
+                None,
+                "surrogate settings a, b, slip_offsets_kmh of one length per calibration speed",
+                got={"speeds_kmh": v, "a": a, "b": b, "d": d},
+            )
         return cls(v, a, b, d)
 
     def terms(self, v_kmh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -184,8 +124,9 @@ class SurrogateMap:
 # noise
 
 
-def trace_noise(v_kmh, mu, *, window_kmh: float = 15.0, range_kmh: tuple[float, float] | None = None,
-                min_points: int = 12) -> dict:
+def trace_noise(
+    v_kmh, mu, *, window_kmh: float = 15.0, range_kmh: tuple[float, float] | None = None, min_points: int = 12
+) -> dict:
     """Noise of a trace: scatter around a local quadratic smooth (see the module docstring).
 
     Every point in ``range_kmh`` (default: all) is compared with the quadratic fitted to the trace points within
@@ -201,8 +142,13 @@ def trace_noise(v_kmh, mu, *, window_kmh: float = 15.0, range_kmh: tuple[float, 
     v, y = v[order], y[order]
     lo, hi = (v[0], v[-1]) if range_kmh is None else (float(range_kmh[0]), float(range_kmh[1]))
     idx = np.flatnonzero((v >= lo - 1e-9) & (v <= hi + 1e-9))
-    out = {"sigma": float("nan"), "rho1": float("nan"), "n": int(idx.size), "dof": float("nan"),
-           "method": f"local quadratic +-{window_kmh:g} km/h, sigma^2 = RSS / (n - 2 tr H + tr H'H)"}
+    out = {
+        "sigma": float("nan"),
+        "rho1": float("nan"),
+        "n": int(idx.size),
+        "dof": float("nan"),
+        "method": f"local quadratic +-{window_kmh:g} km/h, sigma^2 = RSS / (n - 2 tr H + tr H'H)",
+    }
     if idx.size < max(int(min_points), 5):
         return out
     resid = np.empty(idx.size)
@@ -230,8 +176,15 @@ def trace_noise(v_kmh, mu, *, window_kmh: float = 15.0, range_kmh: tuple[float, 
 # profile likelihood
 
 
-def _profile_sse(param: str, values: np.ndarray, s: np.ndarray, b: np.ndarray, z: np.ndarray,
-                 bounds: Mapping[str, tuple[float, float]], alphas: np.ndarray) -> np.ndarray:
+def _profile_sse(
+    param: str,
+    values: np.ndarray,
+    s: np.ndarray,
+    b: np.ndarray,
+    z: np.ndarray,
+    bounds: Mapping[str, tuple[float, float]],
+    alphas: np.ndarray,
+) -> np.ndarray:
     """min SSE over the other two parameters (box-bounded) with ``param`` fixed at each of ``values``.
 
     Model ``z = b (mu_k (1 - e) + mu_s e)``, ``e = exp(-alpha s)``. For fixed alpha the model is linear in
@@ -239,13 +192,11 @@ def _profile_sse(param: str, values: np.ndarray, s: np.ndarray, b: np.ndarray, z
     problem on every alpha of the grid ``alphas``, minimum over the grid refined by bounded Brent between the
     best grid value's neighbours.
     """
-    from skidsim.calibration import _box_ls2_many
-
     lo2 = np.array([bounds["mu_k"][0], bounds["mu_s"][0]], dtype=float)
     hi2 = np.array([bounds["mu_k"][1], bounds["mu_s"][1]], dtype=float)
     if param == "alpha":
         e = np.exp(-np.outer(values, s))
-        _, sse = _box_ls2_many(b * (1.0 - e), b * e, z, lo2, hi2)
+        _, sse = box_ls2_many(b * (1.0 - e), b * e, z, lo2, hi2)
         return sse
     e = np.exp(-np.outer(alphas, s))  # (A, n)
     if param == "mu_k":
@@ -275,8 +226,12 @@ def _profile_sse(param: str, values: np.ndarray, s: np.ndarray, b: np.ndarray, z
         best = float(sse[i])
         left, right = float(alphas[max(i - 1, 0)]), float(alphas[min(i + 1, alphas.size - 1)])
         if right > left:  # refine alpha between the grid neighbours (the profile is sharp when the rest is pinned)
-            res = minimize_scalar(lambda al: float(sse_at(float(c), *cols(al))[0]), bounds=(left, right),
-                                  method="bounded", options={"xatol": 1e-10})
+            res = minimize_scalar(
+                lambda al, c=c: float(sse_at(float(c), *cols(al))[0]),
+                bounds=(left, right),
+                method="bounded",
+                options={"xatol": 1e-10},
+            )
             if res.success and float(res.fun) < best:
                 best = float(res.fun)
         out[k] = best
@@ -289,8 +244,13 @@ def _interval_from_profile(grid: np.ndarray, dev: np.ndarray, crit: float, lo: f
     inside = dev <= crit
     if not inside.any():  # numerical: the minimum lies between grid points
         k = int(np.argmin(dev))
-        return {"lower": float(grid[k]), "upper": float(grid[k]), "lower_open": False, "upper_open": False,
-                "n_pieces": 1}
+        return {
+            "lower": float(grid[k]),
+            "upper": float(grid[k]),
+            "lower_open": False,
+            "upper_open": False,
+            "n_pieces": 1,
+        }
     ks = np.flatnonzero(inside)
     i0, i1 = int(ks[0]), int(ks[-1])
     pieces = 1 + int(np.sum(np.diff(ks) > 1))
@@ -302,17 +262,32 @@ def _interval_from_profile(grid: np.ndarray, dev: np.ndarray, crit: float, lo: f
 
     lower = float(grid[0]) if i0 == 0 else cross(i0 - 1, i0)
     upper = float(grid[-1]) if i1 == grid.size - 1 else cross(i1 + 1, i1)
-    return {"lower": lower, "upper": upper, "lower_open": i0 == 0 and lo == grid[0],
-            "upper_open": i1 == grid.size - 1 and hi == grid[-1], "n_pieces": pieces}
+    return {
+        "lower": lower,
+        "upper": upper,
+        "lower_open": i0 == 0 and lo == grid[0],
+        "upper_open": i1 == grid.size - 1 and hi == grid[-1],
+        "n_pieces": pieces,
+    }
 
 
-def profile_intervals(v_kmh, y, mapping: SurrogateMap, bounds: Mapping[str, tuple[float, float]], sigma_eff: float,
-                      *, confidence: float = 0.95, points: int = 121, alpha_points: int = 801) -> dict:
+def profile_intervals(
+    v_kmh,
+    y,
+    mapping: SurrogateMap,
+    bounds: Mapping[str, tuple[float, float]],
+    sigma_eff: float,
+    *,
+    confidence: float = 0.95,
+    points: int = 121,
+    alpha_points: int = 801,
+) -> dict:
     """Profile-likelihood intervals of (mu_s, mu_k, alpha) within ``bounds`` for data ``y`` at ``v_kmh`` (km/h)
     through ``mapping``, noise sd ``sigma_eff`` (mu). Each profile is evaluated on ``points`` values over the
     bounds, and again on ``points`` values around the confidence set when fewer than 5 of them fall inside it (a
-    parameter pinned by the data or by the other parameters' bounds). Returns ``{"sse_min", "params": {name: {lower, upper,
-    lower_open, upper_open, n_pieces, grid, deviance}}}`` (deviance = (SSE_profile - SSE_min) / sigma_eff^2)."""
+    parameter pinned by the data or by the other parameters' bounds). Returns ``{"sse_min", "params": {name:
+    {lower, upper, lower_open, upper_open, n_pieces, grid, deviance}}}`` (deviance = (SSE_profile - SSE_min) /
+    sigma_eff^2)."""
     v = np.asarray(v_kmh, dtype=float)
     a, b, s = mapping.terms(v)
     z = np.asarray(y, dtype=float) - a
@@ -327,7 +302,7 @@ def profile_intervals(v_kmh, y, mapping: SurrogateMap, bounds: Mapping[str, tupl
     sse_min = min(float(sse_fit), *(float(np.min(pr[1])) for pr in profiles.values()))
     # a sharp profile (fewer than 5 grid values inside the set) is profiled again on a fine grid around the set
     for p, (grid, sse) in list(profiles.items()):
-        ks = np.flatnonzero((sse - sse_min) / sigma_eff ** 2 <= crit)
+        ks = np.flatnonzero((sse - sse_min) / sigma_eff**2 <= crit)
         if ks.size >= 5:
             continue
         k0, k1 = (int(ks[0]), int(ks[-1])) if ks.size else (int(np.argmin(sse)),) * 2
@@ -343,7 +318,7 @@ def profile_intervals(v_kmh, y, mapping: SurrogateMap, bounds: Mapping[str, tupl
     out = {"sse_min": sse_min, "critical_deviance": crit, "params": {}}
     for p, (grid, sse) in profiles.items():
         lo, hi = (float(x) for x in bounds[p])
-        dev = (sse - sse_min) / sigma_eff ** 2
+        dev = (sse - sse_min) / sigma_eff**2
         rec = _interval_from_profile(grid, dev, crit, lo, hi)
         rec.update(grid=grid.tolist(), deviance=dev.tolist())
         out["params"][p] = rec
@@ -371,8 +346,11 @@ def curve_combinations(law: ExponentialDecay, v_mid_kmh: float, half_span_kmh: f
     curv = 0.5 * amp * (al * c) ** 2 * e * h * h
     g_level = [e, 1.0 - e, -amp * s * e]
     g_slope = [-al * c * e * h, al * c * e * h, -amp * c * h * e * (1.0 - al * s)]
-    g_curv = [0.5 * (al * c) ** 2 * e * h * h, -0.5 * (al * c) ** 2 * e * h * h,
-              0.5 * amp * c * c * h * h * e * (2.0 * al - al * al * s)]
+    g_curv = [
+        0.5 * (al * c) ** 2 * e * h * h,
+        -0.5 * (al * c) ** 2 * e * h * h,
+        0.5 * amp * c * c * h * h * e * (2.0 * al - al * al * s),
+    ]
     return np.array([level, slope, curv]), np.array([g_level, g_slope, g_curv])
 
 
@@ -385,29 +363,46 @@ def local_uncertainty(J: np.ndarray, sigma_eff: float, widths: np.ndarray, *, z:
     F = S @ (J.T @ J) @ S
     lam, vec = np.linalg.eigh(F)
     lam_f = np.maximum(lam, 1e-14 * max(float(lam[-1]), 1e-300))
-    cov_scaled = (vec / lam_f) @ vec.T * sigma_eff ** 2
+    cov_scaled = (vec / lam_f) @ vec.T * sigma_eff**2
     cov = S @ cov_scaled @ S
     directions = []
     for k in np.argsort(lam):  # smallest eigenvalue (least determined) first
         u = vec[:, k]
         u = u if u[np.argmax(np.abs(u))] > 0 else -u
-        directions.append({"eigenvalue": float(lam[k]), "vector_range_units": dict(zip(PARAMS, map(float, u))),
-                           "halfwidth_range_fraction": float(z * sigma_eff / math.sqrt(lam_f[k]))})
-    return {"cov": cov, "se": np.sqrt(np.maximum(np.diag(cov), 0.0)), "directions": directions,
-            "condition_number": float(lam_f[-1] / lam_f[0])}
+        directions.append(
+            {
+                "eigenvalue": float(lam[k]),
+                "vector_range_units": dict(zip(PARAMS, map(float, u))),
+                "halfwidth_range_fraction": float(z * sigma_eff / math.sqrt(lam_f[k])),
+            }
+        )
+    return {
+        "cov": cov,
+        "se": np.sqrt(np.maximum(np.diag(cov), 0.0)),
+        "directions": directions,
+        "condition_number": float(lam_f[-1] / lam_f[0]),
+    }
 
 
 # ----------------------------------------------------------------------------------------------------
 # the per-site record
 
 
-def _fe_misses(result: CalibrationResult, mapping: SurrogateMap, validation: pd.DataFrame | None,
-               cal_speeds: Sequence[float]) -> dict:
+def _fe_misses(
+    result: CalibrationResult, mapping: SurrogateMap, validation: pd.DataFrame | None, cal_speeds: Sequence[float]
+) -> dict:
     """Surrogate-vs-FE misses (SN): verification runs after the surrogate was corrected (iteration >= 2),
     all verification runs, and the FE runs of the final law at the validation speeds."""
     h = result.history
-    out = {"verify_all_max": float("nan"), "verify_corrected_max": float("nan"), "n_verify": 0,
-           "n_verify_corrected": 0, "validation_max": float("nan"), "n_validation": 0, "validation_runs": []}
+    out = {
+        "verify_all_max": float("nan"),
+        "verify_corrected_max": float("nan"),
+        "n_verify": 0,
+        "n_verify_corrected": 0,
+        "validation_max": float("nan"),
+        "n_validation": 0,
+        "validation_runs": [],
+    }
     if len(h) and "stage" in h:
         ver = h[(h["stage"] == "verify") & h["sn_pred"].notna()]
         miss = (ver["sn_sim"] - ver["sn_pred"]).abs()
@@ -426,8 +421,10 @@ def _fe_misses(result: CalibrationResult, mapping: SurrogateMap, validation: pd.
             d = rows["sn_sim"].to_numpy(float) - pred
             out["validation_max"] = float(np.max(np.abs(d)))
             out["n_validation"] = int(len(rows))
-            out["validation_runs"] = [{"speed_kmh": float(v), "sn_fe": float(x), "sn_surrogate": float(p)}
-                                      for v, x, p in zip(rows["speed_kmh"], rows["sn_sim"], pred)]
+            out["validation_runs"] = [
+                {"speed_kmh": float(v), "sn_fe": float(x), "sn_surrogate": float(p)}
+                for v, x, p in zip(rows["speed_kmh"], rows["sn_sim"], pred)
+            ]
     return out
 
 
@@ -436,10 +433,17 @@ def _rmse(x) -> float:
     return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
 
 
-def assess(result: CalibrationResult, trace, validation: pd.DataFrame | None = None, *,
-           options: IdentifiabilityOptions | None = None, calibration_speeds_kmh: Sequence[float] | None = None,
-           validation_speeds_kmh: Sequence[float] = (), site: str | None = None,
-           source: str | None = None) -> dict:
+def assess(
+    result: CalibrationResult,
+    trace,
+    validation: pd.DataFrame | None = None,
+    *,
+    options: IdentifiabilityOptions | None = None,
+    calibration_speeds_kmh: Sequence[float] | None = None,
+    validation_speeds_kmh: Sequence[float] = (),
+    site: str | None = None,
+    source: str | None = None,
+) -> dict:
     """The quality and identifiability record of one calibration (see the module docstring).
 
     result: the site's :class:`CalibrationResult` (ours or the study's); trace: the site's measured DFT curve
@@ -450,173 +454,342 @@ def assess(result: CalibrationResult, trace, validation: pd.DataFrame | None = N
     opt = options or IdentifiabilityOptions()
     v_all, mu_all = measured_arrays(trace, source=source)
     st = result.settings or {}
-    cal = sorted(float(v) for v in (calibration_speeds_kmh if calibration_speeds_kmh is not None
-                                    else (st.get("speeds_kmh") or sorted(result.measured_kmh))))
-    val = sorted(float(v) for v in validation_speeds_kmh)
-    bounds = {k: tuple(float(x) for x in v) for k, v in (st.get("bounds") or st.get("intervals")
-                                                           or DEFAULT_BOUNDS).items()}
+    cal, val, bounds = _speeds_and_bounds(result, calibration_speeds_kmh, validation_speeds_kmh)
     law = result.params
     mapping = SurrogateMap.from_result(result)
-    # the points the law is judged on: those the calibration fitted (fit_on trace: the trace in the fit range)
-    if st.get("fit_on", "trace") == "trace":
-        fr = st.get("fit_range_kmh") or [cal[0], cal[-1]]
-        sel = (v_all >= float(fr[0]) - 1e-9) & (v_all <= float(fr[1]) + 1e-9)
-        v_fit, y_fit = v_all[sel], mu_all[sel]
-        fit_points = f"trace points {float(fr[0]):g}-{float(fr[1]):g} km/h"
-    else:
-        v_fit = np.asarray(cal)
-        y_fit = measured_at(trace, v_fit, source=source)
-        fit_points = "measured values at the calibration speeds"
-    n = int(v_fit.size)
-    rng_all = (min(cal + val), max(cal + val))
-    noise = trace_noise(v_all, mu_all, window_kmh=opt.noise_window_kmh, range_kmh=rng_all,
-                        min_points=opt.noise_min_points)
+    v_fit, y_fit, fit_points = _judged_points(st, trace, v_all, mu_all, cal, source)
+    noise = trace_noise(
+        v_all,
+        mu_all,
+        window_kmh=opt.noise_window_kmh,
+        range_kmh=(min(cal + val), max(cal + val)),
+        min_points=opt.noise_min_points,
+    )
     sigma = noise["sigma"]
     have_sigma = math.isfinite(sigma) and sigma > 0
+    fam = _family_fits(mapping, law, v_fit, y_fit, bounds, opt)
+    fe, fe_points = _fe_fit(result, trace, validation, cal, val, v_all, source)
+    misses = _fe_misses(result, mapping, validation, cal)
+    flags, at_bound = _flags(result, bounds, opt, sigma, fam, fe, misses, fit_points)
+    unc = _uncertainty(law, mapping, v_fit, y_fit, bounds, cal, sigma, fam, opt) if have_sigma else {"available": False}
+    within = have_sigma and "fit_beyond_noise" not in flags and math.isfinite(fe["calibration"])
+    ident = [p for p in PARAMS if unc.get("params", {}).get(p, {}).get("identified")]
+    ident_c = [c for c, r in unc.get("combinations", {}).items() if r["identified"]]
+    return {
+        "site": site,
+        "method": result.method,
+        "law": law.as_dict(),
+        "converged": bool(result.converged),
+        "bounds": {k: list(v) for k, v in bounds.items()},
+        "fit_points": fit_points,
+        "n_fit_points": fam["n"],
+        "noise": noise,
+        "within_noise": bool(within),
+        "flags": sorted(flags),
+        "reasons": flags,
+        "at_bound": at_bound,
+        "fit": _fit_record(fe, fe_points, fam, sigma),
+        "surrogate": {
+            "speeds_kmh": list(mapping.speeds_kmh),
+            "a": list(mapping.a),
+            "b": list(mapping.b),
+            "slip_offsets_kmh": list(mapping.d_kmh),
+        },
+        "fe_misses": misses,
+        "uncertainty": unc,
+        "identified_params": ident,
+        "identified_combinations": ident_c,
+        "statement": _statement(have_sigma, ident, ident_c, unc),
+        "options": asdict(opt),
+    }
 
-    # the law family's best fit, within the calibration bounds and within wide bounds (its reach)
+
+def _speeds_and_bounds(
+    result: CalibrationResult, calibration_speeds_kmh: Sequence[float] | None, validation_speeds_kmh: Sequence[float]
+) -> tuple[list[float], list[float], dict[str, tuple[float, float]]]:
+    """Calibration speeds (km/h; default the result's), validation speeds (km/h), and the calibration's bounds
+    (its ``bounds`` or ``intervals`` setting, else :data:`DEFAULT_BOUNDS`)."""
+    st = result.settings or {}
+    cal_src = calibration_speeds_kmh
+    if cal_src is None:
+        cal_src = st.get("speeds_kmh") or sorted(result.measured_kmh)
+    cal = sorted(float(v) for v in cal_src)
+    val = sorted(float(v) for v in validation_speeds_kmh)
+    src = st.get("bounds") or st.get("intervals") or DEFAULT_BOUNDS
+    return cal, val, {k: tuple(float(x) for x in v) for k, v in src.items()}
+
+
+def _fit_record(fe: dict, fe_points: list[dict], fam: dict, sigma: float) -> dict:
+    """The record's ``fit`` part: FE RMSEs vs measured (SN, and in sigma), the law family's fits and RMSEs."""
+    have_sigma = math.isfinite(sigma) and sigma > 0
+    return {
+        "rmse_fe_calibration": fe["calibration"],
+        "rmse_fe_validation": fe["validation"],
+        "rmse_fe_calibration_sigma": fe["calibration"] / sigma if have_sigma else float("nan"),
+        "rmse_fe_validation_sigma": fe["validation"] / sigma if have_sigma else float("nan"),
+        "rmse_law_on_trace": fam["rmse_cal_law"],
+        "rmse_best_law_bounded": fam["rmse_bounded"],
+        "rmse_best_law_wide": fam["rmse_wide"],
+        "bound_cost_rmse": fam["rmse_bounded"] - fam["rmse_wide"],
+        "best_law_bounded": fam["law_b"].as_dict(),
+        "best_law_wide": fam["law_w"].as_dict(),
+        "fe_points": fe_points,
+    }
+
+
+def _judged_points(
+    settings: Mapping, trace, v_all: np.ndarray, mu_all: np.ndarray, cal: list[float], source
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """The points the law is judged on: those the calibration fitted (fit_on trace: the trace in the fit range,
+    default the calibration speeds' range; else the measured values at the calibration speeds). Returns
+    (speeds km/h, mu, description)."""
+    if settings.get("fit_on", "trace") == "trace":
+        fr = settings.get("fit_range_kmh") or [cal[0], cal[-1]]
+        sel = (v_all >= float(fr[0]) - 1e-9) & (v_all <= float(fr[1]) + 1e-9)
+        return v_all[sel], mu_all[sel], f"trace points {float(fr[0]):g}-{float(fr[1]):g} km/h"
+    v_fit = np.asarray(cal)
+    return v_fit, measured_at(trace, v_fit, source=source), "measured values at the calibration speeds"
+
+
+def _family_fits(
+    mapping: SurrogateMap,
+    law: ExponentialDecay,
+    v_fit: np.ndarray,
+    y_fit: np.ndarray,
+    bounds: Mapping[str, tuple[float, float]],
+    opt: IdentifiabilityOptions,
+) -> dict:
+    """The law family's best fit through the mapping within the calibration bounds (``law_b``) and within wide
+    bounds (``law_w``, its reach); their RMSEs and the calibrated law's; the residual lag-one autocorrelation
+    ``rho_res`` of the wide fit and its AR(1) variance inflation (rho clipped to [0, 0.9]). The wide fit's residuals
+    are the noise scale of the uncertainty: a bound that costs fit is reported as such, not mistaken for noise, and a
+    curve outside the law widens the intervals."""
+    n = int(v_fit.size)
     a, b, s = mapping.terms(v_fit)
     v_eff = s * KMH_PER_MS
     law_b, sse_b = fit_exponential_decay(v_eff, y_fit, a=a, b=b, bounds=bounds)
     wide = {"mu_s": (0.0, opt.wide_mu_max), "mu_k": (0.0, opt.wide_mu_max), "alpha": (0.0, opt.wide_alpha_max_s_per_m)}
     law_w, sse_w = fit_exponential_decay(v_eff, y_fit, a=a, b=b, bounds=wide)
-    # the noise scale of the uncertainty: residuals of the family's best fit within wide bounds (a bound that costs
-    # fit is reported as such, not mistaken for noise; a curve outside the law widens the intervals)
     order = np.argsort(v_fit, kind="stable")
     res_w = (mapping.predict(law_w, v_fit) - y_fit)[order]
     res_w = res_w - res_w.mean()
     rho_res = float((res_w[:-1] @ res_w[1:]) / (res_w @ res_w)) if n > 2 and (res_w @ res_w) > 0 else 0.0
     rho = min(max(rho_res, 0.0), 0.9)
-    inflation = (1.0 + rho) / (1.0 - rho)
-    rmse_cal_law = _rmse(mapping.predict(law, v_fit) - y_fit)
-    rmse_bounded = math.sqrt(sse_b / n)
-    rmse_wide = math.sqrt(sse_w / n)
+    return {
+        "n": n,
+        "law_b": law_b,
+        "law_w": law_w,
+        "sse_w": sse_w,
+        "rho_res": rho_res,
+        "inflation": (1.0 + rho) / (1.0 - rho),
+        "rmse_cal_law": _rmse(mapping.predict(law, v_fit) - y_fit),
+        "rmse_bounded": math.sqrt(sse_b / n),
+        "rmse_wide": math.sqrt(sse_w / n),
+    }
 
-    # FE fit at calibration and validation speeds
+
+def _fe_fit(
+    result: CalibrationResult,
+    trace,
+    validation: pd.DataFrame | None,
+    cal: list[float],
+    val: list[float],
+    v_all: np.ndarray,
+    source,
+) -> tuple[dict, list[dict]]:
+    """RMSE (SN) of the FE runs of the final law against the measured curve at the calibration and validation
+    speeds the trace covers (from ``validation``; at the calibration speeds, without it, the result's own runs of
+    its final law), and the points compared."""
     fe = {"calibration": float("nan"), "validation": float("nan")}
     fe_points = []
     if validation is not None and len(validation):
         for kind, speeds in (("calibration", cal), ("validation", val)):
-            rows = validation[np.isclose(validation["speed_kmh"].to_numpy(float)[:, None],
-                                         np.asarray(speeds, dtype=float)[None, :]).any(axis=1)] if speeds else \
-                validation.iloc[:0]
+            rows = (
+                validation[
+                    np.isclose(
+                        validation["speed_kmh"].to_numpy(float)[:, None], np.asarray(speeds, dtype=float)[None, :]
+                    ).any(axis=1)
+                ]
+                if speeds
+                else validation.iloc[:0]
+            )
             inside = (rows["speed_kmh"] >= v_all[0] - 1e-9) & (rows["speed_kmh"] <= v_all[-1] + 1e-9)
             rows = rows[inside]  # a speed the trace does not cover has no measured value to compare with
             if len(rows):
                 m = measured_at(trace, rows["speed_kmh"].to_numpy(float), source=source)
                 fe[kind] = _rmse(rows["sn_sim"].to_numpy(float) - m)
-                fe_points += [{"speed_kmh": float(vv), "kind": kind, "sn_fe": float(x), "mu_measured": float(mm)}
-                              for vv, x, mm in zip(rows["speed_kmh"], rows["sn_sim"], m)]
+                fe_points += [
+                    {"speed_kmh": float(vv), "kind": kind, "sn_fe": float(x), "mu_measured": float(mm)}
+                    for vv, x, mm in zip(rows["speed_kmh"], rows["sn_sim"], m)
+                ]
     if not math.isfinite(fe["calibration"]):
         fs = result.final_sn()
         pts = [(vv, fs[vv]) for vv in fs if any(abs(vv - c) < 1e-9 for c in cal)]
         if pts:
             m = measured_at(trace, [p[0] for p in pts], source=source)
             fe["calibration"] = _rmse(np.array([p[1] for p in pts]) - m)
-    misses = _fe_misses(result, mapping, validation, cal)
+    return fe, fe_points
 
-    # flags
+
+def _flags(
+    result: CalibrationResult,
+    bounds: Mapping[str, tuple[float, float]],
+    opt: IdentifiabilityOptions,
+    sigma: float,
+    fam: dict,
+    fe: dict,
+    misses: dict,
+    fit_points: str,
+) -> tuple[dict[str, str], list[dict]]:
+    """The raised flags with their reasons, and the parameters at a bound (see the module docstring)."""
+    have_sigma = math.isfinite(sigma) and sigma > 0
     flags: dict[str, str] = {}
     if not result.converged:
         flags["not_converged"] = result.message
     at_bound = []
     for p in PARAMS:
         lo, hi = bounds[p]
-        val_p = float(getattr(law, p))
+        val_p = float(getattr(result.params, p))
         tol_p = opt.at_bound_rel_tol * (hi - lo)
         for side, bnd in (("lower", lo), ("upper", hi)):
             if abs(val_p - bnd) <= tol_p:
                 at_bound.append({"param": p, "bound": side, "bound_value": bnd, "value": val_p})
-    bound_cost = rmse_bounded - rmse_wide
     if at_bound:
-        txt = ", ".join(f"{d['param']} = {d['value']:.4g} at its {d['bound']} bound {d['bound_value']:g}"
-                        for d in at_bound)
+        bound_cost = fam["rmse_bounded"] - fam["rmse_wide"]
+        txt = ", ".join(
+            f"{d['param']} = {d['value']:.4g} at its {d['bound']} bound {d['bound_value']:g}" for d in at_bound
+        )
         if have_sigma:
-            txt += (f"; relaxing the bounds lowers the law's RMSE on the trace by {bound_cost:.3g} "
-                    f"({bound_cost / sigma:.2f} sigma)")
+            txt += (
+                f"; relaxing the bounds lowers the law's RMSE on the trace by {bound_cost:.3g} "
+                f"({bound_cost / sigma:.2f} sigma)"
+            )
         flags["at_bound"] = txt
+    rmse_wide = fam["rmse_wide"]
     if have_sigma and rmse_wide > opt.outside_law_factor * sigma:
-        flags["outside_law"] = (f"the best law of the family (mu in [0, {opt.wide_mu_max:g}], alpha in "
-                                f"[0, {opt.wide_alpha_max_s_per_m:g}] s/m, through the FE mapping) misses the "
-                                f"{fit_points} by RMSE {rmse_wide:.4g} = {rmse_wide / sigma:.2f} sigma "
-                                f"> {opt.outside_law_factor:g} sigma (sigma {sigma:.4g})")
+        flags["outside_law"] = (
+            f"the best law of the family (mu in [0, {opt.wide_mu_max:g}], alpha in "
+            f"[0, {opt.wide_alpha_max_s_per_m:g}] s/m, through the FE mapping) misses the "
+            f"{fit_points} by RMSE {rmse_wide:.4g} = {rmse_wide / sigma:.2f} sigma "
+            f"> {opt.outside_law_factor:g} sigma (sigma {sigma:.4g})"
+        )
     miss_parts = []
-    for key, label in (("verify_corrected_max", "a verification run after the surrogate was corrected"),
-                       ("validation_max", "a validation speed")):
+    for key, label in (
+        ("verify_corrected_max", "a verification run after the surrogate was corrected"),
+        ("validation_max", "a validation speed"),
+    ):
         if math.isfinite(misses[key]) and misses[key] > opt.fe_miss_max:
             miss_parts.append(f"{label}: |SN_FE - SN_surrogate| = {misses[key]:.3g}")
     if miss_parts:
         flags["fe_not_smooth"] = "; ".join(miss_parts) + f" > {opt.fe_miss_max:g}"
     if have_sigma:
-        beyond = [f"{k} speeds RMSE {fe[k]:.4g} = {fe[k] / sigma:.2f} sigma" for k in ("calibration", "validation")
-                  if math.isfinite(fe[k]) and fe[k] > opt.fit_noise_factor * sigma]
+        beyond = [
+            f"{k} speeds RMSE {fe[k]:.4g} = {fe[k] / sigma:.2f} sigma"
+            for k in ("calibration", "validation")
+            if math.isfinite(fe[k]) and fe[k] > opt.fit_noise_factor * sigma
+        ]
         if beyond:
             flags["fit_beyond_noise"] = "; ".join(beyond) + f" > {opt.fit_noise_factor:g} sigma (sigma {sigma:.4g})"
+    return flags, at_bound
 
-    # uncertainty
+
+def _uncertainty(
+    law: ExponentialDecay,
+    mapping: SurrogateMap,
+    v_fit: np.ndarray,
+    y_fit: np.ndarray,
+    bounds: Mapping[str, tuple[float, float]],
+    cal: list[float],
+    sigma: float,
+    fam: dict,
+    opt: IdentifiabilityOptions,
+) -> dict:
+    """Standard errors, profile-likelihood intervals, eigen-directions and curve combinations of the law at noise
+    ``sigma_eff^2 = max(sigma^2, s_resid^2) (1 + rho) / (1 - rho)`` (see the module docstring; needs sigma > 0)."""
     z = float(math.sqrt(chi2.ppf(opt.confidence, 1)))
-    unc: dict[str, Any] = {"available": have_sigma}
-    if have_sigma:
-        s_resid = math.sqrt(sse_w / max(n - 3, 1))
-        sigma_eff = math.sqrt(max(sigma ** 2, s_resid ** 2) * inflation)
-        widths = np.array([bounds[p][1] - bounds[p][0] for p in PARAMS], dtype=float)
-        J = mapping.jacobian(law, v_fit)
-        loc = local_uncertainty(J, sigma_eff, widths, z=z)
-        prof = profile_intervals(v_fit, y_fit, mapping, bounds, sigma_eff, confidence=opt.confidence,
-                                 points=opt.profile_points, alpha_points=opt.alpha_grid_points)
-        v_mid, half = 0.5 * (cal[0] + cal[-1]), 0.5 * (cal[-1] - cal[0])
-        cvals, cgrad = curve_combinations(law, v_mid, half)
-        cse = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", cgrad, loc["cov"], cgrad), 0.0))
-        params = {}
-        for k, p in enumerate(PARAMS):
-            pr = prof["params"][p]
-            width = widths[k]
-            closed = not (pr["lower_open"] or pr["upper_open"])
-            params[p] = {"value": float(getattr(law, p)), "se": float(loc["se"][k]),
-                         "profile_lower": pr["lower"], "profile_upper": pr["upper"],
-                         "lower_open": bool(pr["lower_open"]), "upper_open": bool(pr["upper_open"]),
-                         "n_pieces": int(pr["n_pieces"]),
-                         "identified": bool(closed and pr["n_pieces"] == 1
-                                            and 0.5 * (pr["upper"] - pr["lower"])
-                                            <= opt.identified_rel_halfwidth * width),
-                         "deviance_at_value": float(np.interp(getattr(law, p), pr["grid"], pr["deviance"]))}
-        combos = {}
-        for name, cv, cs, unit in zip(("level", "slope", "curvature"), cvals, cse,
-                                      (f"mu at {v_mid:g} km/h", f"mu'(v) * {half:g} km/h",
-                                       f"mu''(v) * ({half:g} km/h)^2 / 2")):
-            combos[name] = {"value": float(cv), "se": float(cs), "halfwidth": float(z * cs), "definition": unit,
-                            "identified": bool(z * cs <= opt.identified_halfwidth_mu)}
-        for d in loc["directions"]:
-            d["identified"] = bool(d["halfwidth_range_fraction"] <= opt.identified_rel_halfwidth)
-        joint = (sse_of(mapping, law, v_fit, y_fit) - prof["sse_min"]) / sigma_eff ** 2
-        unc.update({"sigma_eff": sigma_eff, "residual_rho1": rho_res, "ar1_inflation": inflation,
-                    "residual_sd": s_resid,
-                    "params": params, "combinations": combos, "directions": loc["directions"],
-                    "condition_number": loc["condition_number"],
-                    "cov": {p: dict(zip(PARAMS, map(float, loc["cov"][i]))) for i, p in enumerate(PARAMS)},
-                    "joint_deviance_of_law": float(joint),
-                    "law_in_joint_region": bool(joint <= chi2.ppf(opt.confidence, 3)),
-                    "profiles": {p: {"grid": prof["params"][p]["grid"], "deviance": prof["params"][p]["deviance"]}
-                                 for p in PARAMS}})
-    within = (have_sigma and not any(k in flags for k in ("fit_beyond_noise",))
-              and math.isfinite(fe["calibration"]))
-    ident = [p for p in PARAMS if unc.get("params", {}).get(p, {}).get("identified")]
-    ident_c = [c for c, r in unc.get("combinations", {}).items() if r["identified"]]
-    statement = _statement(have_sigma, ident, ident_c, unc)
-    return {"site": site, "method": result.method, "law": law.as_dict(), "converged": bool(result.converged),
-            "bounds": {k: list(v) for k, v in bounds.items()}, "fit_points": fit_points, "n_fit_points": n,
-            "noise": noise, "within_noise": bool(within), "flags": sorted(flags), "reasons": flags,
-            "at_bound": at_bound,
-            "fit": {"rmse_fe_calibration": fe["calibration"], "rmse_fe_validation": fe["validation"],
-                    "rmse_fe_calibration_sigma": fe["calibration"] / sigma if have_sigma else float("nan"),
-                    "rmse_fe_validation_sigma": fe["validation"] / sigma if have_sigma else float("nan"),
-                    "rmse_law_on_trace": rmse_cal_law, "rmse_best_law_bounded": rmse_bounded,
-                    "rmse_best_law_wide": rmse_wide, "bound_cost_rmse": bound_cost,
-                    "best_law_bounded": law_b.as_dict(), "best_law_wide": law_w.as_dict(), "fe_points": fe_points},
-            "surrogate": {"speeds_kmh": list(mapping.speeds_kmh), "a": list(mapping.a), "b": list(mapping.b),
-                          "slip_offsets_kmh": list(mapping.d_kmh)},
-            "fe_misses": misses, "uncertainty": unc, "identified_params": ident,
-            "identified_combinations": ident_c, "statement": statement, "options": asdict(opt)}
+    n = fam["n"]
+    s_resid = math.sqrt(fam["sse_w"] / max(n - 3, 1))
+    sigma_eff = math.sqrt(max(sigma**2, s_resid**2) * fam["inflation"])
+    widths = np.array([bounds[p][1] - bounds[p][0] for p in PARAMS], dtype=float)
+    loc = local_uncertainty(mapping.jacobian(law, v_fit), sigma_eff, widths, z=z)
+    prof = profile_intervals(
+        v_fit,
+        y_fit,
+        mapping,
+        bounds,
+        sigma_eff,
+        confidence=opt.confidence,
+        points=opt.profile_points,
+        alpha_points=opt.alpha_grid_points,
+    )
+    v_mid, half = 0.5 * (cal[0] + cal[-1]), 0.5 * (cal[-1] - cal[0])
+    params = {
+        p: _param_record(law, p, prof["params"][p], float(loc["se"][k]), widths[k], opt) for k, p in enumerate(PARAMS)
+    }
+    combos = _combination_records(law, v_mid, half, loc["cov"], z, opt)
+    for d in loc["directions"]:
+        d["identified"] = bool(d["halfwidth_range_fraction"] <= opt.identified_rel_halfwidth)
+    joint = (sse_of(mapping, law, v_fit, y_fit) - prof["sse_min"]) / sigma_eff**2
+    return {
+        "available": True,
+        "sigma_eff": sigma_eff,
+        "residual_rho1": fam["rho_res"],
+        "ar1_inflation": fam["inflation"],
+        "residual_sd": s_resid,
+        "params": params,
+        "combinations": combos,
+        "directions": loc["directions"],
+        "condition_number": loc["condition_number"],
+        "cov": {p: dict(zip(PARAMS, map(float, loc["cov"][i]))) for i, p in enumerate(PARAMS)},
+        "joint_deviance_of_law": float(joint),
+        "law_in_joint_region": bool(joint <= chi2.ppf(opt.confidence, 3)),
+        "profiles": {p: {"grid": prof["params"][p]["grid"], "deviance": prof["params"][p]["deviance"]} for p in PARAMS},
+    }
+
+
+def _param_record(
+    law: ExponentialDecay, p: str, pr: dict, se: float, width: float, opt: IdentifiabilityOptions
+) -> dict:
+    """One parameter's value, standard error and profile interval; identified when the interval is closed, in one
+    piece and its half-width at most ``identified_rel_halfwidth`` of the bound width."""
+    closed = not (pr["lower_open"] or pr["upper_open"])
+    return {
+        "value": float(getattr(law, p)),
+        "se": se,
+        "profile_lower": pr["lower"],
+        "profile_upper": pr["upper"],
+        "lower_open": bool(pr["lower_open"]),
+        "upper_open": bool(pr["upper_open"]),
+        "n_pieces": int(pr["n_pieces"]),
+        "identified": bool(
+            closed and pr["n_pieces"] == 1 and 0.5 * (pr["upper"] - pr["lower"]) <= opt.identified_rel_halfwidth * width
+        ),
+        "deviance_at_value": float(np.interp(getattr(law, p), pr["grid"], pr["deviance"])),
+    }
+
+
+def _combination_records(
+    law: ExponentialDecay, v_mid: float, half: float, cov: np.ndarray, z: float, opt: IdentifiabilityOptions
+) -> dict:
+    """Level, slope and curvature of the law over the calibration window (mu) with their standard errors from the
+    local covariance ``cov``; identified when the 95 % half-width is at most ``identified_halfwidth_mu``."""
+    cvals, cgrad = curve_combinations(law, v_mid, half)
+    cse = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", cgrad, cov, cgrad), 0.0))
+    combos = {}
+    for name, cv, cs, unit in zip(
+        ("level", "slope", "curvature"),
+        cvals,
+        cse,
+        (f"mu at {v_mid:g} km/h", f"mu'(v) * {half:g} km/h", f"mu''(v) * ({half:g} km/h)^2 / 2"),
+    ):
+        combos[name] = {
+            "value": float(cv),
+            "se": float(cs),
+            "halfwidth": float(z * cs),
+            "definition": unit,
+            "identified": bool(z * cs <= opt.identified_halfwidth_mu),
+        }
+    return combos
 
 
 def sse_of(mapping: SurrogateMap, law: ExponentialDecay, v_kmh, y) -> float:
@@ -634,22 +807,40 @@ def _statement(have_sigma: bool, ident: list[str], ident_c: list[str], unc: dict
     weak = [d for d in unc["directions"] if not d["identified"]]
     for d in weak:
         vec = d["vector_range_units"]
-        parts.append("not identified: the direction " + " ".join(f"{vec[p]:+.2f} {p}" for p in PARAMS)
-                     + f" (range units; 95 % half-width {d['halfwidth_range_fraction']:.2g} of the range)")
+        parts.append(
+            "not identified: the direction "
+            + " ".join(f"{vec[p]:+.2f} {p}" for p in PARAMS)
+            + f" (range units; 95 % half-width {d['halfwidth_range_fraction']:.2g} of the range)"
+        )
     return "; ".join(parts)
 
 
 def table_row(rec: Mapping) -> dict:
     """One flat row of the campaign table ``identifiability.csv`` from a record of :func:`assess`."""
-    row = {"site": rec["site"], "method": rec["method"], "mu_s": rec["law"]["mu_s"], "mu_k": rec["law"]["mu_k"],
-           "alpha_s_per_m": rec["law"]["alpha"], "converged": bool(rec["converged"]),
-           "sigma": rec["noise"]["sigma"], "rho1": rec["noise"]["rho1"], "within_noise": bool(rec["within_noise"]),
-           "flags": ";".join(rec["flags"]), "n_flags": len(rec["flags"])}
+    row = {
+        "site": rec["site"],
+        "method": rec["method"],
+        "mu_s": rec["law"]["mu_s"],
+        "mu_k": rec["law"]["mu_k"],
+        "alpha_s_per_m": rec["law"]["alpha"],
+        "converged": bool(rec["converged"]),
+        "sigma": rec["noise"]["sigma"],
+        "rho1": rec["noise"]["rho1"],
+        "within_noise": bool(rec["within_noise"]),
+        "flags": ";".join(rec["flags"]),
+        "n_flags": len(rec["flags"]),
+    }
     for f in FLAGS:
         row[f] = f in rec["flags"]
     row["at_bound_params"] = ";".join(f"{d['param']}:{d['bound']}" for d in rec["at_bound"])
-    for k in ("rmse_fe_calibration", "rmse_fe_validation", "rmse_fe_calibration_sigma", "rmse_fe_validation_sigma",
-              "rmse_best_law_wide", "bound_cost_rmse"):
+    for k in (
+        "rmse_fe_calibration",
+        "rmse_fe_validation",
+        "rmse_fe_calibration_sigma",
+        "rmse_fe_validation_sigma",
+        "rmse_best_law_wide",
+        "bound_cost_rmse",
+    ):
         row[k] = rec["fit"][k]
     row["fe_miss_verify_corrected_max"] = rec["fe_misses"]["verify_corrected_max"]
     row["fe_miss_validation_max"] = rec["fe_misses"]["validation_max"]

@@ -1,8 +1,8 @@
 """FE extension of the model criticism: a viscoelastic slider bulk (hysteresis on macrotexture).
 
-The law-level diagnosis (:mod:`skidsim.diagnosis`) names :class:`skidsim.extensions.ViscoelasticFE` as the FE change
-for a within-site shape cause (the functional form of mu(v), or MPD x speed within sites). This module makes it
-concrete:
+The law-level diagnosis (:func:`skidsim.criticism.diagnose`) names
+:class:`skidsim.criticism.extensions.ViscoelasticFE` as the FE change for a within-site shape cause (the
+functional form of mu(v), or MPD x speed within sites). This module makes it concrete:
 
 * :data:`DEFAULT_PRONY`: the default Prony series on the slider's shear modulus (g_i relative to the long-term
   shear modulus, tau_i in s); see docs/model-criticism.md "FE extension: viscoelastic slider" for its source.
@@ -18,21 +18,20 @@ concrete:
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
+from .options import FE_MODES, DiagnosisOptions
 
 #: Default Prony series (dimensionless g_i relative to the long-term shear modulus G_inf; tau_i in s): three
 #: Maxwell branches one decade apart, centred on the DFT's texture excitation band (f = v / lambda, 1-10 kHz:
 #: 1/(2 pi tau) = 16 kHz, 1.6 kHz, 160 Hz). Loss factor tan(delta) = G''/G' of this series: 0.20 at 1 kHz,
 #: 0.15 at 10 kHz; storage modulus G'/G_inf 1.63 at 1 kHz, 2.13 at 10 kHz, G_0/G_inf = 2.5 (the instantaneous
 #: modulus sets the explicit time step: dt shrinks by sqrt(2.5) in the rubber). See docs/model-criticism.md.
-DEFAULT_PRONY = {"prony_g": (0.5, 0.5, 0.5), "prony_tau_s": (1.0e-5, 1.0e-4, 1.0e-3)}
-
-#: Values of config ``diagnosis.fe_extension``.
-FE_MODES = ("auto", "always", "never")
+DEFAULT_PRONY = {k: tuple(v) for k, v in DiagnosisOptions().viscoelastic.items()}
+_DEFAULTS = DiagnosisOptions()
 
 
 def prony_moduli(freq_hz, prony_g: Sequence[float], prony_tau_s: Sequence[float]):
@@ -44,8 +43,8 @@ def prony_moduli(freq_hz, prony_g: Sequence[float], prony_tau_s: Sequence[float]
     w = 2 * np.pi * np.asarray(freq_hz, dtype=float)[..., None]
     g = np.asarray(prony_g, dtype=float)
     wt = w * np.asarray(prony_tau_s, dtype=float)
-    storage = 1.0 + (g * wt ** 2 / (1 + wt ** 2)).sum(-1)
-    loss = (g * wt / (1 + wt ** 2)).sum(-1)
+    storage = 1.0 + (g * wt**2 / (1 + wt**2)).sum(-1)
+    loss = (g * wt / (1 + wt**2)).sum(-1)
     return storage, loss
 
 
@@ -60,11 +59,13 @@ def viscoelastic_solver_cfg(solver_cfg: Mapping, prony: Mapping | None = None) -
     g = [float(x) for x in prony.get("prony_g") or []]
     tau = [float(x) for x in prony.get("prony_tau_s") or []]
     if not g or len(g) != len(tau):
-        raise ConfigError(f"config diagnosis.viscoelastic: expected prony_g and prony_tau_s of equal, non-zero "
-                          f"length, got {len(g)} and {len(tau)}")
+        raise ConfigError(
+            f"config diagnosis.viscoelastic: expected prony_g and prony_tau_s of equal, non-zero "
+            f"length, got {len(g)} and {len(tau)}"
+        )
     if any(x < 0 for x in g) or any(t <= 0 for t in tau):
         raise ConfigError(f"config diagnosis.viscoelastic: expected g_i >= 0 and tau_i > 0 s, got {g}, {tau}")
-    out = {k: v for k, v in dict(solver_cfg).items()}
+    out = dict(solver_cfg)
     overrides = dict(out.get("overrides") or {})
     overrides.update({"prony_g": g, "prony_tau_s": tau})
     out["overrides"] = overrides
@@ -115,11 +116,15 @@ def fe_extension_decision(mode: str, causes: Sequence[Mapping]) -> tuple[bool, s
 
 def _rmse(res) -> float:
     r = np.asarray(res, dtype=float)
-    return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
+    return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
 
 
-def site_speed_gain(measured: Mapping[float, float], sim_before: Mapping[float, float],
-                    sim_after: Mapping[float, float], validation_speeds_kmh: Sequence[float]) -> dict:
+def site_speed_gain(
+    measured: Mapping[float, float],
+    sim_before: Mapping[float, float],
+    sim_after: Mapping[float, float],
+    validation_speeds_kmh: Sequence[float],
+) -> dict:
     """Held-out-speed agreement of one site before (elastic) and after (viscoelastic recalibration).
 
     ``measured``: ``{speed_kmh: mu}`` DFT points; ``sim_before``/``sim_after``: ``{speed_kmh: SN}`` simulated with
@@ -127,6 +132,7 @@ def site_speed_gain(measured: Mapping[float, float], sim_before: Mapping[float, 
     count. Returns ``{"n", "speeds_kmh", "rmse_before", "rmse_after", "rmse_gain" (before - after; > 0 better),
     "sse_before", "sse_after"}`` (SN units). Raises ValueError when no validation speed is common to the three.
     """
+
     def lookup(d, v):
         for k, x in d.items():
             if abs(float(k) - v) < 1e-9:
@@ -142,16 +148,28 @@ def site_speed_gain(measured: Mapping[float, float], sim_before: Mapping[float, 
         rb.append(b - m)
         ra.append(a - m)
     if not speeds:
-        raise ValueError(f"no validation speed {list(validation_speeds_kmh)} km/h has a measured point and both "
-                         "simulations")
+        raise ValueError(
+            f"no validation speed {list(validation_speeds_kmh)} km/h has a measured point and both simulations"
+        )
     rb, ra = np.array(rb), np.array(ra)
-    return {"n": len(speeds), "speeds_kmh": speeds, "rmse_before": _rmse(rb), "rmse_after": _rmse(ra),
-            "rmse_gain": _rmse(rb) - _rmse(ra), "sse_before": float((rb ** 2).sum()),
-            "sse_after": float((ra ** 2).sum())}
+    return {
+        "n": len(speeds),
+        "speeds_kmh": speeds,
+        "rmse_before": _rmse(rb),
+        "rmse_after": _rmse(ra),
+        "rmse_gain": _rmse(rb) - _rmse(ra),
+        "sse_before": float((rb**2).sum()),
+        "sse_after": float((ra**2).sum()),
+    }
 
 
-def campaign_speed_gain(per_site: Mapping[str, Mapping], *, n_boot: int = 2000, seed: int = 0,
-                        ci: float = 0.95) -> dict:
+def campaign_speed_gain(
+    per_site: Mapping[str, Mapping],
+    *,
+    n_boot: int = _DEFAULTS.n_boot,
+    seed: int = _DEFAULTS.seed,
+    ci: float = _DEFAULTS.ci,
+) -> dict:
     """Campaign-level held-out-speed gain, the shape of gain.json's ``held_out_speeds`` scope.
 
     ``per_site``: ``{site: site_speed_gain(...)}``. ``rmse_before``/``rmse_after`` pool all points
@@ -171,6 +189,74 @@ def campaign_speed_gain(per_site: Mapping[str, Mapping], *, n_boot: int = 2000, 
     nb = w @ n
     gains = np.sqrt((w @ sb) / nb) - np.sqrt((w @ sa) / nb)
     lo, hi = np.quantile(gains, [(1 - ci) / 2, 1 - (1 - ci) / 2])
-    return {"n_sites": len(sites), "n_points": int(n.sum()), "rmse_before": before, "rmse_after": after,
-            "rmse_gain": before - after, "rmse_gain_ci": [float(lo), float(hi)], "ci_level": ci,
-            "n_boot": int(n_boot), "seed": int(seed), "gain_excludes_zero": bool(lo > 0)}
+    return {
+        "n_sites": len(sites),
+        "n_points": int(n.sum()),
+        "rmse_before": before,
+        "rmse_after": after,
+        "rmse_gain": before - after,
+        "rmse_gain_ci": [float(lo), float(hi)],
+        "ci_level": ci,
+        "n_boot": int(n_boot),
+        "seed": int(seed),
+        "gain_excludes_zero": bool(lo > 0),
+    }
+
+
+def site_fe_gain(
+    measured: Mapping[float, float],
+    elastic: Mapping[float, float],
+    viscoelastic: Mapping[float, float],
+    validation_speeds_kmh: Sequence[float],
+    recalibration,
+) -> dict:
+    """One site's entry of fe_gain.json: :func:`site_speed_gain` of the elastic (``elastic``: {speed_kmh: SN}) and
+    viscoelastic (``viscoelastic``) simulations against the ``measured`` DFT points, plus the viscoelastic
+    recalibration's law (``recalibration``: a :class:`skidsim.calibration.CalibrationResult`), convergence and FE
+    run count."""
+    g = site_speed_gain(measured, elastic, viscoelastic, validation_speeds_kmh)
+    law = recalibration.params
+    g["params_viscoelastic"] = {"mu_s": law.mu_s, "mu_k": law.mu_k, "alpha": law.alpha}
+    g["converged_viscoelastic"] = bool(recalibration.converged)
+    g["n_fe_runs_viscoelastic"] = int(recalibration.n_fe_runs)
+    return g
+
+
+def fe_gain_record(
+    mode: str,
+    causes: Sequence[Mapping],
+    per_site: Mapping[str, Mapping] | None = None,
+    *,
+    prony: Mapping | None = None,
+    validation_speeds_kmh: Sequence[float] = (),
+    options: DiagnosisOptions = _DEFAULTS,
+) -> dict:
+    """The content of fe_gain.json: the decision (:func:`fe_extension_decision`, the named cause of ``causes``)
+    and, where the extension applies, the campaign gain over ``per_site`` (:func:`site_fe_gain` per site;
+    bootstrap ``options.n_boot``/``seed``/``ci``), the per-site entries, the Prony series (``prony``: prony_g,
+    prony_tau_s) and the validation speeds (km/h). Raises ValueError when it applies but ``per_site`` is None."""
+    apply, reason = fe_extension_decision(mode, causes)
+    out = {
+        "applied": bool(apply),
+        "reason": reason,
+        "mode": mode,
+        "named_cause": (
+            {k: causes[0].get(k) for k in ("variable", "level", "kind", "p_adjusted", "significant")}
+            if causes
+            else None
+        ),
+    }
+    if not apply:
+        return out
+    if per_site is None:
+        raise ValueError("fe_gain: the extension applies but the per-site viscoelastic runs are not inputs")
+    agg = campaign_speed_gain(per_site, n_boot=int(options.n_boot), seed=int(options.seed), ci=float(options.ci))
+    out.update(
+        {
+            "held_out_speeds": agg,
+            "per_site": dict(per_site),
+            "prony": {"prony_g": prony["prony_g"], "prony_tau_s": prony["prony_tau_s"]},
+            "validation_speeds_kmh": [float(x) for x in validation_speeds_kmh],
+        }
+    )
+    return out

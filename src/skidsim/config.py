@@ -1,18 +1,26 @@
-"""Helpers the Snakemake workflow needs at parse time and the scripts share (no Snakemake import).
+"""The workflow's configuration as the library reads it (no Snakemake import; pandas only inside the functions
+that need it, since the workflow imports this module when it parses the Snakefile).
 
+* :func:`merged`: recursive dict merge (config over defaults).
+* :func:`synthetic_config`: the generator's configuration from the ``synthetic`` and ``truth`` sections.
 * :func:`site_table`: the site list (site, section, scan, dft) known when the workflow is parsed.
-* :func:`save_surfaces` / :func:`load_surfaces`: intermediate height maps between rules (``.npz``, mm).
+* :func:`plan_check`: the config and campaign check that stops a bad plan before anything runs.
+* :func:`regression_split`: the seeded train/test split of the ``regression`` section.
+* :func:`solver_config`: the :class:`~skidsim.solver.SolverConfig` of the ``solver`` section.
+* :func:`file_digest`, :func:`config_digest`: short SHA-256 digests (FE cache keys).
+
+The calibration sections have their options classes in :mod:`skidsim.calibration.options`.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from .errors import CampaignError
-from .runlog import atomic_path
-from .surface import Surface
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 def merged(defaults: dict, override: dict | None) -> dict:
@@ -49,13 +57,17 @@ def site_table(config: dict, campaign_dir: str | Path | None) -> pd.DataFrame:
         from . import synthetic
 
         design = synthetic.design_campaign(synthetic_config(config))
-        return pd.DataFrame({"site": design["site"].astype(str), "section": design["section"].astype(str),
-                             "scan": [f"scans/{s}.x3p" for s in design["site"]],
-                             "dft": [f"dft/{s}.csv" for s in design["site"]]})
+        return pd.DataFrame(
+            {
+                "site": design["site"].astype(str),
+                "section": design["section"].astype(str),
+                "scan": [f"scans/{s}.x3p" for s in design["site"]],
+                "dft": [f"dft/{s}.csv" for s in design["site"]],
+            }
+        )
     path = Path(campaign_dir) / "sites.csv"
     if not path.is_file():
-        raise CampaignError(path, "a sites.csv file in the campaign directory (config key 'campaign')",
-                            got="missing")
+        raise CampaignError(path, "a sites.csv file in the campaign directory (config key 'campaign')", got="missing")
     df = pd.read_csv(path, dtype=str, keep_default_na=False)
     missing = [c for c in ("site", "section", "scan", "dft") if c not in df.columns]
     if missing:
@@ -84,28 +96,6 @@ def plan_check(config: dict, campaign_dir: str | Path | None, stream=None) -> No
         raise SystemExit(1)
 
 
-def save_surfaces(path: str | Path, surfaces: dict[str, Surface]) -> None:
-    """Store named surfaces (heights in mm, float64) with their spacings in one ``.npz``, atomically."""
-    arrays = {}
-    for name, s in surfaces.items():
-        arrays[f"{name}__heights_mm"] = s.heights
-        arrays[f"{name}__spacing_mm"] = np.array([s.dx, s.dy])
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-
-
-def load_surfaces(path: str | Path) -> dict[str, Surface]:
-    """Inverse of :func:`save_surfaces`."""
-    out = {}
-    with np.load(path) as z:
-        names = sorted({k.split("__")[0] for k in z.files})
-        for n in names:
-            dx, dy = z[f"{n}__spacing_mm"]
-            out[n] = Surface(z[f"{n}__heights_mm"], float(dx), float(dy), name=n)
-    return out
-
-
 def regression_split(cfg: dict, sites: pd.DataFrame) -> tuple[list[str], list[str]]:
     """The seeded train/test split of the regression stage, known at parse time.
 
@@ -121,8 +111,9 @@ def regression_split(cfg: dict, sites: pd.DataFrame) -> tuple[list[str], list[st
         n_test = max(1, n_test) if n >= 4 else 0
     if n_test == 0:
         return list(sites["site"]), []
-    train, test = split_sites(sites, n_train=n - n_test, seed=int(cfg["seed"]),
-                              grouped_by=cfg.get("grouped_by") or None)
+    train, test = split_sites(
+        sites, n_train=n - n_test, seed=int(cfg["seed"]), grouped_by=cfg.get("grouped_by") or None
+    )
     return [str(s) for s in train], [str(s) for s in test]
 
 
@@ -174,59 +165,3 @@ def config_digest(obj, n: int = 12) -> str:
     import json
 
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:n]
-
-
-def site_simulator(pavement_npz: str | Path, solver_cfg: dict, cache_path: str | Path, site: str):
-    """FE simulator callback ``(speed_kmh, law) -> FEOutcome`` for one site, behind its per-site cache.
-
-    The cache key holds the pavement file's digest and the resolved solver configuration's digest, so changing
-    either never reuses a stale simulation, and a rerun or resumed run never repeats one.
-    """
-    from dataclasses import asdict
-
-    from .calibration import FECache, fe_simulator
-    from .reconstruct import Heightfield
-
-    hf = Heightfield.from_npz(pavement_npz)
-    scfg = solver_config(solver_cfg)
-    key = {k: v for k, v in asdict(scfg).items() if k not in ("progress_every_s", "trace_every", "vtu_frames",
-                                                             "blas_threads")}
-    cache = FECache(cache_path, site, pavement=file_digest(pavement_npz), solver=config_digest(key))
-    return cache.wrap(fe_simulator(hf, scfg)), cache, scfg
-
-
-def measured_points(dft_points, site: str) -> dict[float, float]:
-    """``{speed_kmh: mu}`` of one site from the ingest's DFT points table."""
-    d = dft_points[dft_points["site"] == site]
-    return {float(v): float(m) for v, m in zip(d["speed_kmh"], d["mu"])}
-
-
-def calibrate_ours_site(simulate, traces_parquet: str | Path, site: str, ours_cfg: dict, speeds_kmh,
-                        prior_jsons, log):
-    """Our calibration (:func:`skidsim.calibration.calibrate_fast`) of one site as the workflow runs it: the site's
-    DFT trace from the ingest's ``traces_parquet``, config ``calibration.ours`` (tol, max_fe_runs, model,
-    fit_range_kmh in km/h), calibration speeds in km/h, and the surrogate prior from the reference sites'
-    calibration JSON files ``prior_jsons`` (none, or no converged reference: a pilot run, logged). Used by the
-    elastic calibration and the viscoelastic recalibration alike. Returns the CalibrationResult."""
-    import pandas as pd
-
-    from . import calibration
-
-    traces = pd.read_parquet(traces_parquet)
-    trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
-    prior = None
-    if prior_jsons:
-        refs = [calibration.CalibrationResult.from_json(p) for p in prior_jsons]
-        try:
-            prior = calibration.surrogate_prior(refs)
-        except ValueError as exc:  # e.g. no reference site converged: go on without a prior, say so
-            log.warning("%s: no surrogate prior (%s); calibrating with a pilot run", site, exc)
-        else:
-            log.info("%s: surrogate prior from %d reference site(s): b %s, slip offsets %s km/h at %s km/h", site,
-                     prior["n_sites"], [round(x, 4) for x in prior["b"]],
-                     [round(x, 2) for x in prior["slip_offsets_kmh"]], prior["speeds_kmh"])
-    fit_range = tuple(ours_cfg["fit_range_kmh"]) if ours_cfg.get("fit_range_kmh") else None
-    return calibration.calibrate_fast(simulate, trace, speeds_kmh=[float(v) for v in speeds_kmh],
-                                      tol=ours_cfg["tol"], max_fe_runs=ours_cfg["max_fe_runs"],
-                                      model=ours_cfg["model"], fit_range_kmh=fit_range, source=str(traces_parquet),
-                                      prior=prior)

@@ -1,0 +1,111 @@
+"""Model criticism: where the simulation is systematically wrong, why, a model extension and its measured gain.
+
+The modules follow the path of the data (docs/model-criticism.md describes every convention):
+
+* :mod:`.options` -- :class:`DiagnosisOptions`, the config ``diagnosis:`` section;
+* :mod:`.inputs` -- :class:`DiagnosisInputs` from the workflow's tables (g(v), between-site predictions);
+* :mod:`.residuals` -- residuals ``measured - model`` within sites (calibrated simulation) and between sites
+  (texture-based predictions of held-out sites), and their site x speed-bin matrices;
+* :mod:`.covariates` -- the candidate causes (sites.csv columns, texture parameters, their clusters and PCs);
+* :mod:`.adjustment`, :mod:`.crossval`, :mod:`.permutations` -- designs, cross-validated SSE, permutations;
+* :mod:`.screening` -- every candidate tested at every level; :mod:`.fdr` -- false-discovery control;
+* :mod:`.causes` -- :class:`Cause` records and the ranking that names the top cause;
+* :mod:`.extensions` -- the physical and generic extensions and the choice for a named cause;
+* :mod:`.scopes`, :mod:`.recalibration`, :mod:`.gain` -- cross-fitting on held-out speeds and sites, bootstrap
+  gain; :mod:`.fe_extension` -- the viscoelastic FE extension; :mod:`.report` -- the output files.
+
+The entry point is :func:`diagnose`. Units: speeds km/h, residuals in friction units (mu, dimensionless),
+temperatures deg C, MPD mm. The analysis reads only campaign-level tables (never a truth file).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+from .adjustment import added_variable
+from .causes import Cause, named_cause, order_by_refinement, refines
+from .covariates import (
+    DEFAULT_EXCLUDE,
+    CandidateRoles,
+    between_site_texture_scores,
+    find_mpd_column,
+    site_covariates,
+    texture_clusters,
+)
+from .extensions import ExtendedModel, apply_extension
+from .fdr import adjust_pvalues, auto_permutations
+from .gain import baseline_gain, evaluate_extension, measure_gain
+from .inputs import DiagnosisInputs, read_workflow_inputs
+from .options import DiagnosisOptions
+from .report import write_outputs
+from .residuals import LEVELS, build_residuals
+from .screening import screen_candidates
+
+__all__ = [
+    "DiagnosisInputs",
+    "DiagnosisOptions",
+    "DiagnosisResult",
+    "CandidateRoles",
+    "Cause",
+    "ExtendedModel",
+    "diagnose",
+    "build_residuals",
+    "screen_candidates",
+    "named_cause",
+    "apply_extension",
+    "evaluate_extension",
+    "measure_gain",
+    "write_outputs",
+    "read_workflow_inputs",
+    "site_covariates",
+    "adjust_pvalues",
+    "auto_permutations",
+    "order_by_refinement",
+    "refines",
+    "find_mpd_column",
+    "texture_clusters",
+    "added_variable",
+    "LEVELS",
+    "DEFAULT_EXCLUDE",
+]
+
+
+@dataclass
+class DiagnosisResult:
+    """Everything :func:`diagnose` found: residual table, ranked causes, the named cause (or None), the gain dict
+    (gain.json), held-out predictions before/after per scope, the candidate covariates per site and the
+    added-variable data of a texture-adjusted named cause."""
+
+    residuals: pd.DataFrame
+    causes: list
+    named: Cause | None
+    gain: dict
+    predictions: pd.DataFrame  # held-out rows: scope, site, speed_kmh, kind, measured, before, after
+    covariates: pd.DataFrame = field(default_factory=pd.DataFrame)
+    added_variable: pd.DataFrame = field(default_factory=pd.DataFrame)  # site, covariate_adj, measured_adj
+
+
+def diagnose(
+    inputs: DiagnosisInputs, options: DiagnosisOptions | None = None, roles: CandidateRoles | None = None
+) -> DiagnosisResult:
+    """The whole diagnosis on campaign-level tables: residuals, screening, extension for the named cause,
+    cross-fitted gain. With no named cause, ``gain`` holds the baseline RMSE/R^2 (after = before). ``roles``:
+    which columns are candidates and which carry the temperature and MPD hypotheses (None: the defaults of
+    :class:`DiagnosisOptions` and :class:`CandidateRoles`)."""
+    options = DiagnosisOptions() if options is None else options
+    roles = CandidateRoles() if roles is None else roles
+    sites, texture, bin_kmh = inputs.sites, inputs.texture, options.speed_bin_kmh
+    res = build_residuals(sites, inputs.measured, inputs.simulated, inputs.predicted)
+    pcs = between_site_texture_scores(res, sites, texture, bin_kmh, roles.exclude)  # one set of PCs for all
+    causes = screen_candidates(res, sites, texture, options, roles, texture_pc_scores=pcs)
+    top = named_cause(causes)
+    cov, _ = site_covariates(sites, texture, exclude=roles.exclude)
+    if top is None:
+        gain, preds = baseline_gain(res, options)
+        return DiagnosisResult(res, causes, top, gain, preds, cov, pd.DataFrame())
+    model = apply_extension(top, sites, texture, speed_bin_kmh=bin_kmh, exclude=roles.exclude)
+    gain, preds = evaluate_extension(model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude)
+    av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
+    return DiagnosisResult(res, causes, top, gain, preds, cov, av)

@@ -1,0 +1,210 @@
+"""Causes: one record per screened candidate with its evidence, and the ranking that names the top cause."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import pandas as pd
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One candidate cause and its evidence.
+
+    ``effect``: RMS (over sites and speed bins) of the residual part the candidate explains, in friction units (mu);
+    ``direction``: sign of the association (+1: residual, or its slope over speed for ``x_speed``, grows with the
+    covariate; 0 for categorical / functional form); ``cv_gain``: 1 - MSE_with / MSE_without of the cross-validated
+    residual model (fraction of held-out residual variance explained; <= 0 means no predictive value);
+    ``cv_msr``: cross-validated reduction of the mean squared residual per (site, speed bin) cell, mu^2 (a level
+    term acts on every bin of a site), used to rank significant causes: comparable across kinds and levels;
+    ``z``: (T - mean T_perm) / sd T_perm (standardised statistic); ``group``: numeric candidates with
+    |Pearson r| >= corr_group across sites (itself included), or for texture parameters the members of its
+    texture cluster; ``significant``: p_adjusted <= fdr and cv_gain > 0. ``family``: "primary" (functional form
+    and the physical hypotheses: temperature, MPD x speed) or "secondary" (every other candidate); ``unit``: the
+    tested unit (the variable itself, or ``cluster:<representative>`` for a texture cluster tested by its
+    max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster);
+    ``texture_pcs``: for a between-site sites.csv covariate that varies within sections, the number of texture
+    principal components its test is conditioned on (the texture-adjusted test,
+    :func:`skidsim.criticism.adjustment.texture_adjustment`); -1 for the residual test; ``texture_pcs_cv``: the
+    leading PCs of the best predictive texture model (leave-one-section-out), against which ``cv_gain`` and the
+    texture-refit extension are computed.
+    """
+
+    variable: str
+    level: str
+    kind: str
+    effect: float
+    cv_gain: float
+    p_value: float
+    p_adjusted: float
+    significant: bool
+    group: tuple[str, ...] = ()
+    cv_msr: float = 0.0
+    statistic: float = 0.0
+    z: float = 0.0
+    direction: int = 0
+    source: str = ""
+    dtype: str = ""
+    section_level: bool = False
+    n_sites: int = 0
+    n_permutations: int = 0
+    family: str = ""
+    unit: str = ""
+    unit_p: float = float("nan")
+    texture_pcs: int = -1
+    texture_pcs_cv: int = -1
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["group"] = list(self.group)
+        return d
+
+
+def _group(variable: str, candidates, corr: pd.DataFrame, corr_group: float) -> tuple:
+    members = candidates.cluster_of(variable)
+    if members is not None:
+        return tuple(sorted(members))
+    if variable in corr.columns:
+        row = corr[variable]
+        return tuple(sorted(row.index[row >= corr_group]))
+    return ()
+
+
+def make_causes(tests, adjustment, candidates, options, n_permutations: int) -> list[Cause]:
+    """One :class:`Cause` per screened test (``tests``: :class:`~skidsim.criticism.screening.CandidateTest`),
+    in test order, from the multiple-testing ``adjustment`` (:func:`skidsim.criticism.fdr.adjust`)."""
+    cov, info = candidates.covariates, candidates.info
+    num = [c for c in cov.columns if info[c][1] == "numeric"]
+    corr = cov[num].corr().abs() if num else pd.DataFrame()
+    causes = []
+    for j, t in enumerate(tests):
+        p, pa = adjustment.p[j], adjustment.p_adjusted[j]
+        sd = float(np.std(t.Tp))
+        z = (t.T - float(np.mean(t.Tp))) / sd if sd > 0 else 0.0
+        cvg = 1.0 - t.sse1 / t.sse0 if t.sse0 > 0 else 0.0
+        key = adjustment.unit_of[j]
+        causes.append(
+            Cause(
+                variable=t.variable,
+                level=t.level,
+                kind=t.kind,
+                effect=float(math.sqrt(max(t.T, 0.0) / (t.n * t.S))),
+                cv_gain=float(cvg),
+                p_value=float(p),
+                p_adjusted=float(pa),
+                significant=bool(pa <= options.fdr and cvg > 0.0),
+                group=_group(t.variable, candidates, corr, options.corr_group),
+                cv_msr=float((t.sse0 - t.sse1) / (t.n * t.S)),
+                statistic=float(t.T),
+                z=float(z),
+                direction=t.direction,
+                source=t.source,
+                dtype=t.dtype,
+                section_level=t.section_level,
+                n_sites=t.n,
+                n_permutations=n_permutations,
+                family=adjustment.units[key].family,
+                unit=adjustment.units[key].name,
+                unit_p=float(adjustment.unit_p[key]),
+                texture_pcs=int(t.texture_pcs),
+                texture_pcs_cv=int(t.texture_pcs_cv),
+            )
+        )
+    return causes
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# ranking
+# ----------------------------------------------------------------------------------------------------------------
+
+
+def refines(fine: Cause, coarse: Cause, cov: pd.DataFrame) -> bool:
+    """Whether ``fine`` (a significant categorical section-level cause) refines ``coarse`` (a significant
+    section-level cause of the same level and kind): each level of ``fine`` lies within one value of ``coarse``,
+    and ``coarse`` has fewer distinct values, or as many and is a number (a section-constant number names a
+    quantity, section identity only the sections). ``cov``: one row per site, the candidate columns."""
+    if not (
+        fine.significant
+        and coarse.significant
+        and fine.section_level
+        and coarse.section_level
+        and fine.dtype == "categorical"
+        and fine.level == coarse.level
+        and fine.kind == coarse.kind
+        and fine.variable in cov.columns
+        and coarse.variable in cov.columns
+    ):
+        return False
+    pair = pd.DataFrame({"f": cov[fine.variable], "c": cov[coarse.variable]}).dropna()
+    if not len(pair) or int(pair.groupby("f")["c"].nunique().max()) != 1:
+        return False
+    n_fine, n_coarse = pair["f"].nunique(), pair["c"].nunique()
+    return n_coarse < n_fine or (n_coarse == n_fine and coarse.dtype != "categorical")
+
+
+def order_by_refinement(causes: list[Cause], cov: pd.DataFrame) -> list[Cause]:
+    """Parsimony between section-level groupings: a cause moves right below the first significant coarser one of
+    the same level and kind whose partition it refines (:func:`refines`): section identity below mix, a free-text
+    comment that splits the mixes below mix. The finer one holds the coarser one's evidence; the coarser names the
+    effect with fewer levels. Other causes keep their order."""
+    causes = list(causes)
+    moved = True
+    while moved:  # terminates: a cause moves only below a number or a grouping with strictly fewer levels
+        moved = False
+        for k, c in enumerate(causes):
+            below = [j for j in range(k + 1, len(causes)) if refines(c, causes[j], cov)]
+            if below:
+                causes.insert(below[0], causes.pop(k))
+                moved = True
+                break
+    return causes
+
+
+def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
+    """The physical hypothesis on the MPD column ranks above the texture clusters that hold MPD (e.g. drainage
+    makes the texture model misfit the level of shallow-texture sites: the macrotexture height cluster is
+    significant between sites; MPD x speed names the mechanism). In place."""
+    if mpd_col is None:
+        return
+    mp = [k for k, c in enumerate(causes) if c.significant and c.variable == mpd_col and c.kind == "x_speed"]
+    above = [
+        k
+        for k, c in enumerate(causes)
+        if c.significant
+        and mp
+        and k < mp[0]
+        and mpd_col in c.group
+        and c.unit is not None
+        and str(c.unit).startswith("cluster:")
+    ]
+    if mp and above:
+        causes.insert(above[0], causes.pop(mp[0]))
+
+
+def _shape_below_its_covariate(causes: list[Cause]) -> None:
+    """Hierarchy of within-site shapes: where the functional form and a covariate x speed are both significant
+    within sites, the shape's amplitude follows the covariate and the shared shape is its mean over the sites; the
+    covariate names the mechanism (its model, shared profile + covariate x profile, nests the functional form's),
+    so the functional form ranks right below the first such cause. In place."""
+    ff = [k for k, c in enumerate(causes) if c.significant and c.kind == "functional_form" and c.level == "within-site"]
+    xs = [k for k, c in enumerate(causes) if c.significant and c.kind == "x_speed" and c.level == "within-site"]
+    if ff and xs and ff[0] < xs[0]:
+        causes.insert(xs[0], causes.pop(ff[0]))
+
+
+def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None) -> list[Cause]:
+    """Significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
+    ``z``; then the parsimony rules: :func:`order_by_refinement`, MPD x speed above the texture clusters holding
+    MPD, the within-site functional form below a significant within-site covariate x speed."""
+    causes = sorted(causes, key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
+    causes = order_by_refinement(causes, cov)
+    _mpd_above_its_clusters(causes, mpd_col)
+    _shape_below_its_covariate(causes)
+    return causes
+
+
+def named_cause(causes: list[Cause]) -> Cause | None:
+    """The top significant cause, or None."""
+    return causes[0] if causes and causes[0].significant else None

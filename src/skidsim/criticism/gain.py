@@ -1,0 +1,274 @@
+"""The measured gain of an extension: cross-fitted 'after' values on held-out speeds and held-out sites, and RMSE /
+R^2 before and after with percentile bootstrap intervals over whole sites. Friction mu (dimensionless)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError
+from .covariates import DEFAULT_EXCLUDE, score_table, site_covariates, texture_scores
+from .crossval import folds, is_section_nested
+from .extensions import CovariateTerm, ExtendedModel
+from .options import DiagnosisOptions
+from .recalibration import predict_extended, recalibrate, refit_correction, refit_design
+from .residuals import LEVELS, require_columns
+from .scopes import Scope, centred_speed, make_scope, site_target
+
+_DEFAULTS = DiagnosisOptions()
+#: The summary keys of gain.json's ``over_texture_refit`` and ``over_shared_level`` comparisons.
+_OVER_TEXTURE_KEYS = (
+    "rmse_before",
+    "rmse_before_ci",
+    "rmse_after",
+    "rmse_after_ci",
+    "rmse_gain",
+    "rmse_gain_ci",
+    "r2_gain",
+    "r2_gain_ci",
+    "gain_excludes_zero",
+)
+_OVER_LEVEL_KEYS = (
+    "rmse_before",
+    "rmse_before_ci",
+    "rmse_after",
+    "rmse_after_ci",
+    "rmse_gain",
+    "rmse_gain_ci",
+    "r2_before",
+    "r2_before_ci",
+    "r2_gain",
+    "r2_gain_ci",
+    "gain_excludes_zero",
+)
+
+
+def extension_folds(ext, scope: Scope, cov: pd.DataFrame) -> np.ndarray:
+    """Fold id per site of the scope: its section, or for a section-nested categorical term its rank within the
+    section."""
+    sec = scope.rows.groupby("site")["section"].first().reindex(scope.sites).astype(str).to_numpy()
+    nested = False
+    if isinstance(ext, CovariateTerm) and not pd.api.types.is_numeric_dtype(cov[ext.name]):
+        nested = is_section_nested(cov.loc[scope.sites, ext.name].astype(str).to_numpy(), sec)
+    return folds(sec, nested)
+
+
+def cross_fit(ext, scope: Scope, cov: pd.DataFrame) -> tuple[pd.DataFrame, list]:
+    """Out-of-sample 'after' for every site: the extension is recalibrated without the site's fold
+    (leave-one-section-out; one site per section for section-nested categorical terms). Returns the rows with
+    columns before/after and the per-fold parameters."""
+    fold = extension_folds(ext, scope, cov)
+    after = np.full(len(scope.rows), np.nan)
+    params = []
+    for f in np.unique(fold):
+        train = fold != f
+        p = recalibrate(ext, scope, cov, train)
+        a = predict_extended(ext, p, scope, cov, train)
+        te = ~train[scope.row_site]
+        after[te] = a[te]
+        params.append(p)
+    return scope.rows.assign(after=after), params
+
+
+def shared_level_reference(ext, scope: Scope, cov: pd.DataFrame) -> np.ndarray:
+    """Cross-fitted reference 'before + shared offset' for every row of the scope: the mean training residual
+    (mu) of the same folds as the extension. Comparing an extension against it isolates what the named variable
+    adds beyond a campaign-wide level correction of the texture model (gain.json ``over_shared_level``)."""
+    fold = extension_folds(ext, scope, cov)
+    before = scope.rows["before"].to_numpy(float)
+    resid = scope.rows["measured"].to_numpy(float) - before
+    out = np.full(len(before), np.nan)
+    for f in np.unique(fold):
+        tr = (fold != f)[scope.row_site]
+        out[~tr] = before[~tr] + resid[tr].mean()
+    return out
+
+
+def texture_refit_reference(ext, scope: Scope, cov: pd.DataFrame) -> np.ndarray:
+    """Cross-fitted reference for a texture-adjusted :class:`CovariateTerm`: the same refit without the covariate
+    (``[1, PC_1..k]`` only, same folds). Comparing the extension against it isolates what the named variable adds
+    beyond refitting the level (slope) on the texture PCs (gain.json ``over_texture_refit``)."""
+    fold = extension_folds(ext, scope, cov)
+    before = scope.rows["before"].to_numpy(float)
+    y = scope.rows["measured"].to_numpy(float)
+    dv = centred_speed(scope)
+    X = refit_design(scope, cov, ext.texture_pcs, None)
+    out = np.full(len(before), np.nan)
+    for f in np.unique(fold):
+        train = fold != f
+        beta, *_ = np.linalg.lstsq(X[train], site_target(ext.on, scope, y, dv)[train], rcond=None)
+        te = ~train[scope.row_site]
+        out[te] = (before + refit_correction(ext.on, beta, X, scope, before, dv))[te]
+    return out
+
+
+def _site_sums(p: pd.DataFrame) -> dict:
+    """Per held-out site: point count, sums of measured and measured^2, SSE before/after, shape SSE (about the
+    site's own mean residual) before/after."""
+    rb, ra = p["measured"] - p["before"], p["measured"] - p["after"]
+    g = p.assign(eb=rb**2, ea=ra**2, rb=rb, ra=ra, y2=p["measured"] ** 2).groupby("site")
+    s = {
+        "n": g.size().to_numpy(float),
+        "s1": g["measured"].sum().to_numpy(float),
+        "s2": g["y2"].sum().to_numpy(float),
+        "eb": g["eb"].sum().to_numpy(float),
+        "ea": g["ea"].sum().to_numpy(float),
+    }
+    s["sb"] = s["eb"] - g["rb"].sum().to_numpy(float) ** 2 / s["n"]
+    s["sa"] = s["ea"] - g["ra"].sum().to_numpy(float) ** 2 / s["n"]
+    return s
+
+
+def _weighted_stats(s: dict, W: np.ndarray) -> dict:
+    """RMSE, R^2 and shape RMSE before/after and their gains for every row of site weights ``W``."""
+    N = W @ s["n"]
+    sst = W @ s["s2"] - (W @ s["s1"]) ** 2 / N
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stats = {
+            "rmse_before": np.sqrt(W @ s["eb"] / N),
+            "rmse_after": np.sqrt(W @ s["ea"] / N),
+            "r2_before": 1 - (W @ s["eb"]) / sst,
+            "r2_after": 1 - (W @ s["ea"]) / sst,
+        }
+        stats["shape_rmse_before"] = np.sqrt(W @ s["sb"] / N)
+        stats["shape_rmse_after"] = np.sqrt(W @ s["sa"] / N)
+    stats["rmse_gain"] = stats["rmse_before"] - stats["rmse_after"]
+    stats["shape_rmse_gain"] = stats["shape_rmse_before"] - stats["shape_rmse_after"]
+    stats["r2_gain"] = stats["r2_after"] - stats["r2_before"]
+    return stats
+
+
+def measure_gain(
+    predictions: pd.DataFrame, *, n_boot: int = _DEFAULTS.n_boot, seed: int = _DEFAULTS.seed, ci: float = _DEFAULTS.ci
+) -> dict:
+    """RMSE and R^2 before/after on held-out rows, with percentile bootstrap intervals resampling whole sites.
+
+    ``predictions``: columns site, measured, before, after (mu). ``rmse_gain = rmse_before - rmse_after`` and
+    ``r2_gain = r2_after - r2_before`` (positive = the extension helps). R^2 = 1 - SSE/SST with SST about the mean
+    of the (resampled) measured values. ``shape_rmse_*``: RMSE of the residuals about each site's mean residual
+    (what a per-site level shift cannot fix), with its gain and interval. Bootstrap: ``n_boot`` multinomial
+    resamples of the sites (seeded), percentile intervals at level ``ci``; ``gain_excludes_zero``: lower bound of
+    the RMSE gain > 0; ``shape_gain_excludes_zero`` likewise for the shape RMSE.
+    """
+    require_columns(predictions, ("site", "measured", "before", "after"), "predictions")
+    p = predictions.dropna(subset=["measured", "before", "after"])
+    if p["site"].nunique() < 2:
+        raise InputError("predictions", "held-out rows from at least 2 sites", got=int(p["site"].nunique()))
+    s = _site_sums(p)
+    k = len(s["n"])
+    rng = np.random.default_rng(seed)
+    W = np.vstack([np.ones(k), rng.multinomial(k, np.full(k, 1.0 / k), size=n_boot).astype(float)])
+    q = [(1 - ci) / 2 * 100, (1 + ci) / 2 * 100]
+    out = {"n_sites": int(k), "n_points": int(s["n"].sum()), "n_boot": int(n_boot), "seed": int(seed), "ci": ci}
+    for name, arr in _weighted_stats(s, W).items():
+        out[name] = float(arr[0])
+        boot = arr[1:][np.isfinite(arr[1:])]
+        out[name + "_ci"] = [float(x) for x in np.percentile(boot, q)] if len(boot) else [float("nan")] * 2
+    out["gain_excludes_zero"] = bool(out["rmse_gain_ci"][0] > 0)
+    out["shape_gain_excludes_zero"] = bool(out["shape_rmse_gain_ci"][0] > 0)
+    return out
+
+
+def _ext_describe(ext, params) -> dict:
+    d = {"name": type(ext).__name__, "physical": bool(getattr(ext, "physical", False))}
+    d["settings"] = dict(asdict(ext)) if hasattr(ext, "__dataclass_fields__") else {}
+    d["params_per_fold"] = params
+    return d
+
+
+def _boot(rows: pd.DataFrame, options: DiagnosisOptions) -> dict:
+    return measure_gain(rows, n_boot=options.n_boot, seed=options.seed, ci=options.ci)
+
+
+def _scope_gain(ext, sc: Scope, cov: pd.DataFrame, options: DiagnosisOptions) -> tuple[dict, pd.DataFrame]:
+    """Gain of one extension in one scope (with the between-site reference comparisons) and its rows."""
+    rows, params = cross_fit(ext, sc, cov)
+    g = _boot(rows, options)
+    g["extension"] = _ext_describe(ext, params)
+    if sc.name == "held_out_sites" and isinstance(ext, CovariateTerm) and ext.texture_pcs >= 0:
+        g3 = _boot(rows.assign(before=texture_refit_reference(ext, sc, cov)), options)
+        g["over_texture_refit"] = {k: g3[k] for k in _OVER_TEXTURE_KEYS}
+    if sc.name == "held_out_sites":
+        g2 = _boot(rows.assign(before=shared_level_reference(ext, sc, cov)), options)
+        g["over_shared_level"] = {k: g2[k] for k in _OVER_LEVEL_KEYS}
+    return g, rows.assign(scope=sc.name)
+
+
+def _refit_covariates(residuals, sites, texture_wide, scopes: dict, pcs, exclude) -> pd.DataFrame:
+    """The candidate covariates plus the texture PC scores ``_tpc<j>`` of the texture-refit terms: the PCs the test
+    conditioned on (``pcs``) where they cover every site of the held-out-site scope; else PCs over all sites."""
+    cov, info = site_covariates(sites, texture_wide, exclude=exclude)
+    between = scopes["between-site"]
+    if pcs is None or between is None or not set(between.sites) <= set(pcs.index):
+        pcs = score_table(texture_scores(cov, info), cov.index)
+    return cov.join(pcs)
+
+
+def evaluate_extension(
+    model: ExtendedModel,
+    residuals: pd.DataFrame,
+    sites: pd.DataFrame,
+    texture_wide: pd.DataFrame | None = None,
+    options: DiagnosisOptions = _DEFAULTS,
+    *,
+    texture_pc_scores: pd.DataFrame | None = None,
+    exclude=DEFAULT_EXCLUDE,
+) -> tuple[dict, pd.DataFrame]:
+    """Cross-fit the extension (and its generic fallback) on held-out speeds and held-out sites, measure the gain.
+
+    The primary extension is the physical one unless its RMSE-gain interval at the cause's level does not exclude 0
+    while the fallback's lower bound is higher ("no physical model fits"). ``texture_pc_scores``: the PC scores of
+    the texture-adjusted test (:func:`~skidsim.criticism.covariates.between_site_texture_scores`) for the
+    texture-refit terms. Returns (gain dict, predictions)."""
+    level_scopes = {level: make_scope(residuals, level) for level in LEVELS}  # built once, used by every extension
+    cov = _refit_covariates(residuals, sites, texture_wide, level_scopes, texture_pc_scores, exclude)
+    own = "held_out_speeds" if model.cause.level == "within-site" else "held_out_sites"
+    results = []
+    for ext in [model.extension] + ([model.fallback] if model.fallback is not None else []):
+        scopes, preds = {}, []
+        for sc in (s for s in level_scopes.values() if s is not None):
+            scopes[sc.name], rows = _scope_gain(ext, sc, cov, options)
+            preds.append(rows)
+        results.append((ext, scopes, pd.concat(preds, ignore_index=True) if preds else pd.DataFrame()))
+    best = results[0]
+    if len(results) > 1 and own in best[1] and not best[1][own]["gain_excludes_zero"]:
+        if results[1][1][own]["rmse_gain_ci"][0] > best[1][own]["rmse_gain_ci"][0]:
+            best = results[1]
+    gain = {
+        "cause": model.cause.as_dict(),
+        "extension": type(best[0]).__name__,
+        "level": model.cause.level,
+        "scope": own,
+        "scopes": best[1],
+        "fe_hook": None
+        if model.fe_hook is None
+        else {"name": "ViscoelasticFE", "solver_flags": model.fe_hook.solver_flags},
+        "alternatives": [{"extension": type(e).__name__, "scopes": s} for e, s, _ in results if e is not best[0]],
+    }
+    gain["gain_excludes_zero"] = bool(own in best[1] and best[1][own]["gain_excludes_zero"])
+    return gain, best[2]
+
+
+def baseline_gain(residuals: pd.DataFrame, options: DiagnosisOptions = _DEFAULTS) -> tuple[dict, pd.DataFrame]:
+    """The gain record without a named cause: RMSE/R^2 of the model as it is (after = before) in every scope."""
+    scopes, frames = {}, []
+    for level in LEVELS:
+        sc = make_scope(residuals, level)
+        if sc is None:
+            continue
+        rows = sc.rows.assign(after=sc.rows["before"])
+        scopes[sc.name] = _boot(rows, options)
+        frames.append(rows.assign(scope=sc.name))
+    gain = {
+        "cause": None,
+        "extension": None,
+        "level": None,
+        "scope": None,
+        "scopes": scopes,
+        "fe_hook": None,
+        "alternatives": [],
+        "gain_excludes_zero": False,
+    }
+    return gain, pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()

@@ -1,0 +1,74 @@
+"""The settings of the model criticism: one frozen dataclass whose fields are the ``diagnosis:`` section of
+config/config.yaml, key for key and default for default (docs/model-criticism.md explains each)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+
+from ..errors import ConfigError
+
+#: Values of ``fe_extension`` (the viscoelastic-slider recalibration of :mod:`skidsim.criticism.fe_extension`).
+FE_MODES = ("auto", "always", "never")
+#: Step-up false-discovery procedures of ``fdr_method``: Benjamini-Hochberg, Benjamini-Yekutieli.
+FDR_METHODS = ("bh", "by")
+
+
+def _default_prony() -> dict:
+    return {"prony_g": [0.5, 0.5, 0.5], "prony_tau_s": [1.0e-5, 1.0e-4, 1.0e-3]}
+
+
+@dataclass(frozen=True)
+class DiagnosisOptions:
+    """Settings of :func:`skidsim.criticism.diagnose` and of the FE extension (config ``diagnosis:``).
+
+    ``seed``: every random draw (permutations, sign flips, bootstrap); ``n_permutations``: permutations per test
+    (None: :func:`skidsim.criticism.fdr.auto_permutations`); ``fdr``: false-discovery rate over testing units;
+    ``fdr_method``: "bh" | "by"; ``n_boot``: bootstrap resamples of whole sites for the gain intervals; ``ci``:
+    interval level; ``corr_group``: |Pearson r| above which numeric candidates are reported as one group;
+    ``speed_bin_kmh``: speed bin (km/h) of the residual matrices; ``cluster_rho``: |Spearman rho| of every pair of
+    a texture cluster (one testing unit); ``primary_share``: share of ``fdr`` for the primary family;
+    ``adjust_texture``: between-site tests of sites.csv covariates conditioned on the texture; ``fe_extension``:
+    "auto" | "always" | "never"; ``viscoelastic``: the Prony series of the FE extension, ``prony_g`` (relative to
+    the long-term shear modulus) and ``prony_tau_s`` (relaxation times, s).
+    """
+
+    seed: int = 11
+    n_permutations: int | None = None
+    fdr: float = 0.05
+    fdr_method: str = "bh"
+    n_boot: int = 1000
+    ci: float = 0.95
+    corr_group: float = 0.9
+    speed_bin_kmh: float = 10.0
+    cluster_rho: float = 0.8
+    primary_share: float = 0.5
+    adjust_texture: bool = True
+    fe_extension: str = "auto"
+    viscoelastic: dict = field(default_factory=_default_prony)
+
+    def __post_init__(self):
+        checks = (
+            (0 < self.fdr < 1, "fdr", "a number in (0, 1)"),
+            (self.fdr_method in FDR_METHODS, "fdr_method", f"one of {FDR_METHODS}"),
+            (0 < self.primary_share < 1, "primary_share", "a number in (0, 1)"),
+            (0 < self.ci < 1, "ci", "a number in (0, 1)"),
+            (int(self.n_boot) >= 1, "n_boot", "an integer >= 1"),
+            (self.speed_bin_kmh > 0, "speed_bin_kmh", "a positive speed bin (km/h)"),
+            (self.n_permutations is None or int(self.n_permutations) >= 1, "n_permutations", "null or an integer >= 1"),
+            (self.fe_extension in FE_MODES, "fe_extension", f"one of {FE_MODES}"),
+        )
+        for ok, key, expected in checks:
+            if not ok:
+                raise ConfigError(f"config diagnosis.{key}: expected {expected}, got {getattr(self, key)!r}")
+
+    @classmethod
+    def from_config(cls, section: Mapping | None) -> DiagnosisOptions:
+        """The options of a config ``diagnosis:`` section; missing keys take the defaults. Raises
+        :class:`ConfigError` naming any unknown key."""
+        section = dict(section or {})
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(section) - known)
+        if unknown:
+            raise ConfigError(f"config diagnosis: unknown key(s) {unknown}; expected some of {sorted(known)}")
+        return cls(**section)

@@ -1,0 +1,174 @@
+"""Outputs of the model criticism: residuals.parquet, causes.json, gain.json and report.md, each written
+atomically (:mod:`skidsim.atomic`). Friction mu (dimensionless), speeds km/h."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..atomic import write_parquet, write_text
+from .causes import Cause
+
+
+def json_safe(o):
+    """``o`` with NumPy scalars as Python numbers and non-finite floats as None (JSON null)."""
+    if isinstance(o, dict):
+        return {str(k): json_safe(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [json_safe(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        return None if not np.isfinite(o) else float(o)
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.bool_):
+        return bool(o)
+    return o
+
+
+def _fmt_ci(d, key):
+    lo, hi = d[key + "_ci"]
+    return f"{d[key]:.4f} [{lo:.4f}, {hi:.4f}]"
+
+
+def _fmt_group(group, n_show: int = 6) -> str:
+    """A correlated group for report.md: up to ``n_show`` names and the count of the rest (causes.json has all)."""
+    g = list(group)
+    if len(g) <= 1:
+        return ""
+    return ", ".join(g[:n_show]) + (f" (+{len(g) - n_show} more)" if len(g) > n_show else "")
+
+
+def _named_lines(top: dict | None, gain: dict) -> list[str]:
+    """The report's opening: the named cause, its extension and (DrainageIFI) the curve forms chosen per fold."""
+    if top is None:
+        return [
+            "**No cause named**: no candidate is significant after false-discovery control "
+            "(and with positive cross-validated gain).",
+            "",
+        ]
+    grp = _fmt_group(top["group"]) or "-"
+    lines = [
+        f"**Named cause: `{top['variable']}`** ({top['level']}, {top['kind']}); correlated group: {grp}; "
+        f"effect {top['effect']:.4f} mu, cv gain {top['cv_gain']:.3f}, p = {top['p_value']:.2g}, "
+        f"p_adj = {top['p_adjusted']:.2g}"
+        + (
+            f"; tested beyond the texture (conditional on {top['texture_pcs']} texture principal components)"
+            if top.get("texture_pcs", -1) >= 0
+            else ""
+        )
+        + ".",
+        "",
+        f"Extension applied: **{gain.get('extension')}**"
+        + (f"; FE hook: {gain['fe_hook']['solver_flags']}" if gain.get("fe_hook") else "")
+        + ".",
+        "",
+    ]
+    own = gain.get("scopes", {}).get(gain.get("scope") or "", {})
+    folds = own.get("extension", {}).get("params_per_fold", [])
+    if folds and all("form" in f for f in folds):  # DrainageIFI form "auto": the curve form chosen per fold
+        forms = sorted({f["form"] for f in folds})
+        lines += [
+            "Drainage curve form chosen on the training data, per fold: "
+            + ", ".join(
+                f"{fm} {sum(f['form'] == fm for f in folds)} of {len(folds)} (kappa median "
+                f"{float(np.median([f['kappa'] for f in folds if f['form'] == fm])):.3g})"
+                for fm in forms
+            )
+            + ".",
+            "",
+        ]
+    return lines
+
+
+def _gain_lines(gain: dict) -> list[str]:
+    """The table of held-out gains per scope and the reference comparisons below it."""
+    lines = [
+        "## Gain on held-out data (bootstrap over sites)",
+        "",
+        "| scope | sites | points | RMSE before | RMSE after | RMSE gain | R2 before | R2 after |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, d in gain.get("scopes", {}).items():
+        lines.append(
+            f"| {name} | {d['n_sites']} | {d['n_points']} | {_fmt_ci(d, 'rmse_before')} | "
+            f"{_fmt_ci(d, 'rmse_after')} | {_fmt_ci(d, 'rmse_gain')} | {_fmt_ci(d, 'r2_before')} | "
+            f"{_fmt_ci(d, 'r2_after')} |"
+        )
+    for name, d in gain.get("scopes", {}).items():
+        o = d.get("over_shared_level")
+        if o is not None and gain.get("extension"):
+            lines += [
+                "",
+                f"{name}: against a campaign-wide level offset of the texture model alone (RMSE "
+                f"{o['rmse_before']:.4f}), the extension's RMSE gain is {_fmt_ci(o, 'rmse_gain')} "
+                "(what the named variable itself adds).",
+            ]
+        o = d.get("over_texture_refit")
+        if o is not None and gain.get("extension"):
+            lines += [
+                "",
+                f"{name}: against the same refit on the texture PCs without the named variable (RMSE "
+                f"{o['rmse_before']:.4f}), the RMSE gain is {_fmt_ci(o, 'rmse_gain')}.",
+            ]
+    return lines
+
+
+def _candidate_lines(clist: list[dict], top_n: int) -> list[str]:
+    lines = [
+        "",
+        f"## Candidates (top {top_n} of {len(clist)}, ranked by evidence)",
+        "",
+        "Kind `main*` / `x_speed*`: tested beyond the texture (texture-adjusted test).",
+        "",
+        "| rank | variable | level | kind | effect (mu) | cv gain | p | p adj | significant | group |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for c in clist[:top_n]:
+        kind = c["kind"] + ("*" if c.get("texture_pcs", -1) >= 0 else "")
+        lines.append(
+            f"| {c['rank']} | {c['variable']} | {c['level']} | {kind} | {c['effect']:.4f} | "
+            f"{c['cv_gain']:.3f} | {c['p_value']:.2g} | {c['p_adjusted']:.2g} | {c['significant']} | "
+            f"{_fmt_group(c['group'])} |"
+        )
+    return lines
+
+
+def _figure_lines(figures: dict | None, out: Path) -> list[str]:
+    if not figures:
+        return []
+    lines = ["", "## Figures", ""]
+    for cap, fp in figures.items():
+        lines += [f"![{cap}]({os.path.relpath(Path(fp), out)})", "", f"*{cap}*", ""]
+    return lines
+
+
+def report_markdown(clist: list[dict], gain: dict, figures: dict | None, out: Path, top_n: int = 15) -> str:
+    """The text of report.md: named cause, gains, the top ``top_n`` candidates, figures (paths relative to
+    ``out``)."""
+    top = clist[0] if clist and clist[0]["significant"] else None
+    lines = ["# Model criticism", ""] + _named_lines(top, gain) + _gain_lines(gain) + _candidate_lines(clist, top_n)
+    return "\n".join(lines + _figure_lines(figures, out)) + "\n"
+
+
+def write_outputs(
+    out_dir, residuals: pd.DataFrame, causes: list, gain: dict, figures: dict | None = None, *, top_n: int = 15
+) -> dict:
+    """Write residuals.parquet, causes.json, gain.json and report.md to ``out_dir`` (each atomically).
+
+    ``figures``: {caption: path of an existing PNG}; embedded in report.md with paths relative to ``out_dir``.
+    Returns {name: path}."""
+    out = Path(out_dir)
+    clist = [c.as_dict() if isinstance(c, Cause) else dict(c) for c in causes]
+    for rank, c in enumerate(clist, 1):
+        c["rank"] = rank
+    paths = {
+        "residuals": write_parquet(out / "residuals.parquet", residuals),
+        "causes": write_text(out / "causes.json", json.dumps(json_safe(clist), indent=2) + "\n"),
+        "gain": write_text(out / "gain.json", json.dumps(json_safe(gain), indent=2) + "\n"),
+    }
+    paths["report"] = write_text(out / "report.md", report_markdown(clist, gain, figures, out, top_n))
+    return paths

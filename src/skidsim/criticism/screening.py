@@ -1,0 +1,380 @@
+"""Screening of every candidate cause at every level of error (docs/model-criticism.md, section 2).
+
+Residuals are averaged per site and speed bin; only bins observed at every site of a level are used. Per level:
+
+* covariate tests: the sum of squares of the residual (site mean ``main``, between sites only; centred speed
+  profile ``x_speed``) explained by the candidate's basis, against permutations of whole sites (section identity:
+  free site permutations; every other covariate: sections as blocks and sites within sections);
+* texture-adjusted tests (between sites, sites.csv covariates that vary within sections): the candidate's part
+  orthogonal to the leading texture PCs against the residuals of the measured curve on them (Freedman & Lane
+  1983), so a covariate that correlates with texture by chance is neither credited with texture's effect nor
+  absorbed by the texture model;
+* MPD x speed within sites: the amplitude of the shared residual shape against the IFI's 1/Sp(MPD);
+* the functional form: the mean residual shape over sites, against random sign flips of whole sections' profiles
+  (between sites, the shape the texture model adds to the within-site residual, ``sn_sim - sn_pred``).
+
+Then false-discovery control (:mod:`skidsim.criticism.fdr`) and ranking (:mod:`skidsim.criticism.causes`).
+Speeds km/h, residuals mu (dimensionless).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError
+from .adjustment import adjusted_basis, basis, residualise, texture_adjustment
+from .causes import Cause, make_causes, rank_causes
+from .covariates import CandidateRoles, CandidateSet, candidate_set, scores_for
+from .crossval import cv_sse, folds, is_section_nested
+from .extensions import ifi_speed_constant_kmh
+from .fdr import adjust, family_sizes, permutation_count
+from .options import DiagnosisOptions
+from .permutations import nested_permutations, perm_stats, site_permutations
+from .residuals import LEVELS, level_matrix, require_columns, texture_model_shape
+
+
+@dataclass
+class CandidateTest:
+    """One screened candidate at one level and kind: statistic ``T`` and its permutation values ``Tp`` (P,),
+    cross-validated SSE without/with the candidate (``sse0``/``sse1``, mu^2), ``n`` sites x ``S`` columns of the
+    tested residual, sign ``direction``, the candidate's ``source``/``dtype``/``section_level`` and the texture PCs
+    of a texture-adjusted test (``texture_pcs``, ``texture_pcs_cv``; -1 for the residual test)."""
+
+    variable: str
+    level: str
+    kind: str
+    T: float
+    Tp: np.ndarray
+    sse0: float
+    sse1: float
+    n: int
+    S: int
+    direction: int
+    source: str
+    dtype: str
+    section_level: bool
+    texture_pcs: int = -1
+    texture_pcs_cv: int = -1
+
+
+@dataclass
+class LevelData:
+    """One level's residual matrix R (sites x speed bins, mu) and, between sites with texture adjustment, the
+    measured matrix M over the same sites and bins (else None)."""
+
+    level: str
+    site_ids: list
+    bins: np.ndarray
+    R: np.ndarray
+    measured: np.ndarray | None = None
+
+
+def level_data(residuals: pd.DataFrame, options: DiagnosisOptions) -> dict:
+    """{level: LevelData} for every level with residuals at >= 4 sites."""
+    out = {}
+    for level in LEVELS:
+        res = residuals[residuals["level"] == level]
+        if res["site"].nunique() < 4:
+            continue
+        site_ids, bins, R = level_matrix(residuals, level, options.speed_bin_kmh)
+        out[level] = LevelData(level, site_ids, bins, R)
+        if level == "between-site" and options.adjust_texture and "measured" in res.columns:
+            ids_m, bins_m, M = level_matrix(residuals, level, options.speed_bin_kmh, value="measured")
+            out[level].measured = M if (ids_m == site_ids and np.array_equal(bins_m, bins)) else None
+    if not out:
+        raise InputError("residuals", "at least 4 sites with residuals at one level")
+    return out
+
+
+@dataclass
+class LevelContext:
+    """What every test of one level shares: candidates ``C`` of its sites, sections ``sec``, the centred residual
+    profiles ``D`` and tested residuals ``Ys`` per kind, the permutations, and per candidate its basis and whether
+    it is constant within sections (``section_level``) or section identity (``is_section_id``)."""
+
+    data: LevelData
+    C: pd.DataFrame
+    info: dict
+    sec: np.ndarray
+    D: np.ndarray
+    Ys: dict
+    perm_site: np.ndarray
+    perm_nested: np.ndarray
+    section_level: dict
+    is_section_id: dict
+    bases: dict
+    amp_col: str | None
+
+    @property
+    def n(self) -> int:
+        return len(self.sec)
+
+    @property
+    def speed_c(self) -> np.ndarray:
+        return self.data.bins - self.data.bins.mean()
+
+
+def level_context(data: LevelData, cands: CandidateSet, P: int, rng) -> LevelContext:
+    """The shared data of one level; draws its two permutation sets from ``rng`` (sites, then nested)."""
+    missing = [s for s in data.site_ids if s not in cands.covariates.index]
+    if missing:
+        raise InputError("sites table", "a row for every site with residuals", column="site", got=missing[:5])
+    C, info = cands.covariates.loc[data.site_ids], cands.info
+    sec = cands.section_of.loc[data.site_ids].to_numpy()
+    mpd = cands.mpd
+    amp_col = (
+        mpd
+        if (data.level == "within-site" and mpd is not None and mpd in C.columns and info[mpd][1] == "numeric")
+        else None
+    )
+    m = data.R.mean(axis=1)
+    D = data.R - m[:, None]
+    Ys = {"x_speed": D - D.mean(axis=0)}
+    if data.level == "between-site":
+        Ys["main"] = (m - m.mean())[:, None]
+    perm_site = site_permutations(len(sec), P, rng)
+    perm_nested = nested_permutations(sec, P, rng)
+    n_sec = len(np.unique(sec))
+    section_level = {c: bool((C[c].groupby(sec).nunique() == 1).all()) for c in C.columns}
+    is_section_id = {c: section_level[c] and C[c].nunique() == n_sec for c in C.columns}
+    bases = {c: basis(C[c], info[c][1]) for c in C.columns}
+    return LevelContext(data, C, info, sec, D, Ys, perm_site, perm_nested, section_level, is_section_id, bases, amp_col)
+
+
+@dataclass
+class TextureAdjusted:
+    """Nuisance of the texture-adjusted tests of one level: ``k`` PCs conditioned on (design ``N``), ``k_cv`` PCs
+    of the best predictive texture model, the PC ``scores``, the measured curve per kind (``Ys_cv``) and its
+    residuals on ``N`` (``Ys_adj``), and which candidates are tested this way (``adjusted``)."""
+
+    k: int
+    k_cv: int
+    N: np.ndarray
+    scores: np.ndarray
+    Ys_cv: dict
+    Ys_adj: dict
+    adjusted: dict
+
+
+def texture_adjusted(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None) -> TextureAdjusted | None:
+    """The texture adjustment of a between-site level (:func:`texture_adjustment` of the measured curve on the
+    texture PCs); None within sites, without the measured matrix, or with too few sections to condition on a PC
+    (the residual test is kept)."""
+    M = ctx.data.measured
+    if ctx.data.level != "between-site" or M is None:
+        return None
+    scores = scores_for(ctx.data.site_ids, pcs, cands.covariates, cands.info)
+    if scores.shape[1] == 0:
+        return None
+    k, N, k_cv = texture_adjustment(M, scores, ctx.sec)
+    if k < 1:
+        return None
+    DM = M - M.mean(axis=1, keepdims=True)
+    Ys_cv = {"main": (M.mean(axis=1) - M.mean())[:, None], "x_speed": DM - DM.mean(axis=0)}
+    Ys_adj = {kind: residualise(Yc, N) for kind, Yc in Ys_cv.items()}
+    adjusted = {
+        c: ctx.info[c][0] == "sites" and not ctx.section_level[c] and not ctx.is_section_id[c] for c in ctx.C.columns
+    }
+    return TextureAdjusted(k, k_cv, N, scores, Ys_cv, Ys_adj, adjusted)
+
+
+@dataclass
+class _Batch:
+    """Tests of one kind that share a permutation set and an adjustment (``adj``): the tested residual ``Y`` and
+    each candidate's (adjusted) basis ``bases``."""
+
+    kind: str
+    Y: np.ndarray
+    adj: bool
+    bases: dict
+
+
+def _covariate_test(
+    ctx: LevelContext, ta: TextureAdjusted | None, batch: _Batch, c: str, T: float, Tp: np.ndarray
+) -> CandidateTest:
+    dtype, kind, Y, adj = ctx.info[c][1], batch.kind, batch.Y, batch.adj
+    nested = dtype == "categorical" and is_section_nested(ctx.C[c].to_numpy(), ctx.sec)
+    if adj:
+        sse0, sse1 = cv_sse(ta.Ys_cv[kind], ctx.C[c], dtype, folds(ctx.sec, nested), nuisance=ta.scores[:, : ta.k_cv])
+    else:
+        sse0, sse1 = cv_sse(Y, ctx.C[c], dtype, folds(ctx.sec, nested))
+    direction = 0
+    if dtype == "numeric":
+        zc = ctx.C[c].to_numpy(float) - ctx.C[c].mean()
+        bk = batch.bases[c]
+        z = bk[:, 0] * np.sign(bk[:, 0] @ zc) if adj else zc
+        target = Y[:, 0] if kind == "main" else (Y if adj else ctx.D) @ ctx.speed_c
+        direction = int(np.sign(z @ target))
+    return CandidateTest(
+        c,
+        ctx.data.level,
+        kind,
+        T,
+        Tp,
+        sse0,
+        sse1,
+        ctx.n,
+        Y.shape[1],
+        direction,
+        ctx.info[c][0],
+        dtype,
+        ctx.section_level[c],
+        ta.k if adj else -1,
+        ta.k_cv if adj else -1,
+    )
+
+
+def _covariate_batch(
+    ctx: LevelContext, ta: TextureAdjusted | None, kind: str, is_id: bool, perms: np.ndarray, adj: bool
+) -> list[CandidateTest]:
+    """The tests of one kind that share a permutation set and an adjustment: all candidates at once."""
+    Y = ta.Ys_adj[kind] if adj else ctx.Ys[kind]
+    adjusted = ta.adjusted if ta is not None else {}
+    bk = {
+        c: (adjusted_basis(ctx.bases[c], ta.N) if adj else ctx.bases[c])
+        for c in ctx.C.columns
+        if ctx.is_section_id[c] == is_id
+        and adjusted.get(c, False) == adj
+        and ctx.bases[c].shape[1] > 0
+        and not (c == ctx.amp_col and kind == "x_speed")
+    }
+    names = [c for c in bk if bk[c].shape[1] > 0]
+    if not names:
+        return []
+    Q = np.concatenate([bk[c] for c in names], axis=1)
+    owner = np.concatenate([np.full(bk[c].shape[1], k) for k, c in enumerate(names)])
+    A = Q.T @ Y
+    T = np.bincount(owner, weights=(A * A).sum(axis=1), minlength=len(names))
+    Tp = perm_stats(Y, Q, owner, len(names), perms)
+    batch = _Batch(kind, Y, adj, bk)
+    return [_covariate_test(ctx, ta, batch, c, T[k], Tp[:, k]) for k, c in enumerate(names)]
+
+
+def covariate_tests(ctx: LevelContext, ta: TextureAdjusted | None) -> list[CandidateTest]:
+    """Every covariate test of a level: per kind, section identity (free site permutations), the other
+    covariates (nested permutations), and the texture-adjusted ones (nested permutations)."""
+    tests = []
+    for kind in ctx.Ys:
+        for is_id, perms, adj in (
+            (True, ctx.perm_site, False),
+            (False, ctx.perm_nested, False),
+            (False, ctx.perm_nested, True),
+        ):
+            if adj and ta is None:
+                continue
+            tests += _covariate_batch(ctx, ta, kind, is_id, perms, adj)
+    return tests
+
+
+def mpd_amplitude_test(ctx: LevelContext) -> CandidateTest:
+    """MPD x speed within sites: the amplitude of the shared residual shape against the IFI's 1/Sp(MPD) (drainage
+    changes how strongly the law's shape is wrong, not its form, in proportion to 1/Sp, Sp = 14.2 + 89.7 MPD
+    km/h): Y projected on the unit mean shape, one degree of freedom instead of a free profile; the mean shape is
+    invariant to permuting sites, so the nested permutations stay exact."""
+    col = ctx.amp_col
+    f = ctx.D.mean(axis=0)
+    fn = float(np.linalg.norm(f))
+    Ya = (ctx.Ys["x_speed"] @ (f / fn))[:, None] if fn > 0 else np.zeros((ctx.n, 1))
+    inv_sp = pd.Series(1.0 / ifi_speed_constant_kmh(np.maximum(ctx.C[col].to_numpy(float), 0.0)), index=ctx.C.index)
+    q = basis(inv_sp, "numeric")
+    A = q.T @ Ya
+    Tp = perm_stats(Ya, q, np.zeros(q.shape[1], dtype=int), 1, ctx.perm_nested)
+    sse0, sse1 = cv_sse(Ya, inv_sp, "numeric", folds(ctx.sec, False))
+    zc = ctx.C[col].to_numpy(float) - ctx.C[col].mean()
+    return CandidateTest(
+        col,
+        ctx.data.level,
+        "x_speed",
+        float((A * A).sum()),
+        Tp[:, 0],
+        sse0,
+        sse1,
+        ctx.n,
+        1,
+        int(np.sign(zc @ Ya[:, 0])),
+        ctx.info[col][0],
+        "numeric",
+        ctx.section_level[col],
+    )
+
+
+def functional_form_test(ctx: LevelContext, ff_delta: pd.DataFrame | None, P: int, rng) -> CandidateTest:
+    """The functional form: mean residual shape over sites, random sign flips of whole sections' profiles. Between
+    sites the shape tested is the part the texture model adds to the within-site residual (``ff_delta``,
+    :func:`~skidsim.criticism.residuals.texture_model_shape`): the between-site residuals of all held-out sites
+    share the texture model's estimate of the simulated shape, so flipping their section profiles is
+    anti-conservative."""
+    Dff = ctx.D
+    if ctx.data.level == "between-site" and ff_delta is not None:
+        Dff = ff_delta.loc[ctx.data.site_ids].to_numpy(float)
+        Dff = Dff - Dff.mean(axis=1, keepdims=True)
+    n, sec_index = ctx.n, np.unique(ctx.sec, return_inverse=True)[1]
+    flips = rng.choice(np.array([-1.0, 1.0]), size=(P, int(sec_index.max()) + 1))[:, sec_index]
+    Tff = n * float((Dff.mean(axis=0) ** 2).sum())
+    Tffp = ((flips @ Dff) ** 2).sum(axis=1) / n
+    sse0, sse1 = cv_sse(Dff, None, "", folds(ctx.sec, False))
+    return CandidateTest(
+        "functional_form",
+        ctx.data.level,
+        "functional_form",
+        Tff,
+        Tffp,
+        sse0,
+        sse1,
+        n,
+        Dff.shape[1],
+        0,
+        "residual",
+        "",
+        False,
+    )
+
+
+def _between_shape(residuals: pd.DataFrame, data: dict, speed_bin_kmh: float) -> pd.DataFrame | None:
+    """``sn_sim - sn_pred`` per between-site site and bin, where it covers exactly the between-site sites."""
+    if "between-site" not in data:
+        return None
+    ff_delta = texture_model_shape(residuals, speed_bin_kmh)
+    if ff_delta is not None and set(ff_delta.index) != set(data["between-site"].site_ids):
+        return None
+    return ff_delta
+
+
+def screen_candidates(
+    residuals: pd.DataFrame,
+    sites: pd.DataFrame,
+    texture_wide: pd.DataFrame | None = None,
+    options: DiagnosisOptions | None = None,
+    roles: CandidateRoles | None = None,
+    texture_pc_scores: pd.DataFrame | None = None,
+) -> list[Cause]:
+    """Screen every candidate cause at every level; returns the causes ranked by evidence
+    (:func:`~skidsim.criticism.causes.rank_causes`).
+
+    ``residuals``: :func:`~skidsim.criticism.residuals.build_residuals` (the ``measured`` column enables the
+    texture-adjusted tests); ``texture_pc_scores``
+    (:func:`~skidsim.criticism.covariates.between_site_texture_scores`) supplies the PC scores the between-site
+    tests condition on (without it they are computed here, identically). Random draws: one generator seeded with
+    ``options.seed``, per level the site permutations, the nested permutations, then the sign flips. ``options``,
+    ``roles``: None for the defaults.
+    """
+    options = DiagnosisOptions() if options is None else options
+    roles = CandidateRoles() if roles is None else roles
+    require_columns(residuals, ("site", "level", "speed_kmh", "residual"), "residuals")
+    cands = candidate_set(sites, texture_wide, roles, options.cluster_rho)
+    data = level_data(residuals, options)
+    ff_delta = _between_shape(residuals, data, options.speed_bin_kmh)
+    P = permutation_count(family_sizes(data, cands), options)
+    rng = np.random.default_rng(options.seed)
+    tests = []
+    for d in data.values():
+        ctx = level_context(d, cands, P, rng)
+        tests += covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
+        if ctx.amp_col is not None:
+            tests.append(mpd_amplitude_test(ctx))
+        tests.append(functional_form_test(ctx, ff_delta, P, rng))
+    adjustment = adjust(tests, cands, options)
+    return rank_causes(make_causes(tests, adjustment, cands, options, P), cands.covariates, cands.mpd)
