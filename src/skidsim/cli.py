@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from .atomic import atomic_path
 from .errors import SkidsimError
 
 log = logging.getLogger("skidsim")
@@ -76,10 +77,11 @@ def _cmd_texture(args) -> int:
     log.info("texture parameters computed in %.1f s", time.perf_counter() - t0)
     if args.output:
         out = Path(args.output)
-        if out.suffix == ".csv":
-            table.to_csv(out, index=False)
-        else:
-            table.to_parquet(out, index=False)
+        with atomic_path(out) as tmp:
+            if out.suffix == ".csv":
+                table.to_csv(tmp, index=False)
+            else:
+                table.to_parquet(tmp, index=False)
         print(f"wrote {out}")
     if not args.quiet:
         wide = table.pivot_table(index=["parameter", "unit"], columns="band", values="value", aggfunc="first")
@@ -135,7 +137,8 @@ def _cmd_mpd(args) -> int:
     if args.output:
         frame = segs.to_frame().drop(columns="profile")
         frame.insert(0, "segment", range(1, len(frame) + 1))
-        frame.to_csv(args.output, index=False, float_format="%.6g")
+        with atomic_path(args.output) as tmp:
+            frame.to_csv(tmp, index=False, float_format="%.6g")
         print(f"wrote {args.output}")
     return 0
 

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
 
+from skidsim.atomic import write_parquet
 from skidsim.surface import Surface
 
 from .despeckle import despeckle
@@ -41,12 +41,8 @@ def texture_table(
 
 
 def write_texture_table(df: pd.DataFrame, path: str | Path) -> None:
-    """Write a long table to parquet atomically (temporary name, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    df.to_parquet(tmp, index=False)
-    tmp.replace(path)
+    """Write a long table to parquet atomically (:func:`skidsim.atomic.write_parquet`)."""
+    write_parquet(path, df)
 
 
 def campaign_table(
