@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
@@ -43,6 +43,7 @@ from scipy import ndimage
 
 from .atomic import atomic_path
 from .errors import ConfigError, InputError
+from .options import section_items
 from .surface import Surface
 
 #: ISO 16610-61 Gaussian constant alpha = sqrt(ln 2 / pi): 50 % transmission at the cutoff wavelength.
@@ -475,11 +476,7 @@ class MeshOptions:
     @classmethod
     def from_dict(cls, d: dict | None) -> MeshOptions:
         """From the ``mesh:`` config block; an unknown key raises :class:`ConfigError`."""
-        d = dict(d or {})
-        names = sorted(f.name for f in fields(cls))
-        unknown = sorted(set(d) - set(names))
-        if unknown:
-            raise ConfigError(f"mesh: unknown key(s) {unknown}; expected a subset of {names}")
+        d = section_items(cls, d, "mesh")
         return cls(**d)
 
     def strip_kwargs(self) -> dict:

@@ -30,13 +30,14 @@ import hashlib
 import math
 import os
 import zipfile
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 
 from .errors import CampaignError, ConfigError, DftError, InputError
+from .options import options_from_dict
 from .reconstruct import MeshOptions
 from .solver.mesh_study import MeshStudyOptions
 from .texture.parameters import TextureOptions
@@ -44,20 +45,6 @@ from .texture.parameters import TextureOptions
 LEVELS = ("table", "header", "full")
 CONFIG = "config"
 """File name used in messages about configuration values (the merged config of the workflow or CLI)."""
-
-
-def options_from_dict(cls, section: str, d: dict | None):
-    """``cls(**d)`` for a config section ``d`` (missing keys keep the defaults, lists become tuples where the
-    default is a tuple); an unknown key raises :class:`ConfigError` naming the section and the known keys."""
-    d = dict(d or {})
-    known = {f.name: f for f in fields(cls)}
-    unknown = sorted(set(d) - set(known))
-    if unknown:
-        raise ConfigError(f"{section}: unknown key(s) {unknown}; expected a subset of {sorted(known)}")
-    for key, value in d.items():
-        if isinstance(value, list) and isinstance(known[key].default, tuple):
-            d[key] = tuple(value)
-    return cls(**d)
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any
 
 from skidsim.errors import ConfigError
+from skidsim.options import section_items
 
 #: The law's parameters in the order of every (mu_s, mu_k, alpha) tuple.
 PARAMS: tuple[str, str, str] = ("mu_s", "mu_k", "alpha")
@@ -31,19 +32,6 @@ CALIBRATION_SPEEDS_KMH: tuple[float, ...] = (20.0, 40.0, 60.0)
 VALIDATION_SPEEDS_KMH: tuple[float, ...] = (30.0, 50.0, 70.0)
 #: The study's search order: (parameter, speed km/h).
 STUDY_ORDER: tuple[tuple[str, float], ...] = (("mu_k", 60.0), ("mu_s", 20.0), ("alpha", 40.0))
-
-
-def _checked_section(cls, section: Mapping | None, name: str) -> dict:
-    """``section`` as a dict after checking that every key is a field of ``cls`` (ConfigError naming ``name``)."""
-    if section is None:
-        return {}
-    if not isinstance(section, Mapping):
-        raise ConfigError(f"{name}: expected a mapping of settings, got {type(section).__name__} {section!r}")
-    known = [f.name for f in fields(cls)]
-    unknown = sorted(str(k) for k in section if k not in known)
-    if unknown:
-        raise ConfigError(f"{name}: unknown key(s) {unknown}; known: {known}")
-    return dict(section)
 
 
 def _positive(name: str, value: Any) -> None:
@@ -117,7 +105,7 @@ class StudyOptions:
     def from_config(cls, section: Mapping | None) -> StudyOptions:
         """From the ``calibration.study`` mapping; ``start`` may be a mapping {mu_s, mu_k, alpha} (the config form,
         missing names keep :data:`STUDY_START`) or a 3-sequence; missing intervals keep :data:`DEFAULT_BOUNDS`."""
-        cfg = _checked_section(cls, section, "calibration.study")
+        cfg = section_items(cls, section, "calibration.study")
         start = cfg.get("start")
         if isinstance(start, Mapping):
             unknown = sorted(str(k) for k in start if k not in PARAMS)
@@ -185,7 +173,7 @@ class JointOptions:
     @classmethod
     def from_config(cls, section: Mapping | None) -> JointOptions:
         """From the ``calibration.ours`` mapping (None or {}: the defaults)."""
-        return cls(**_checked_section(cls, section, "calibration.ours"))
+        return cls(**section_items(cls, section, "calibration.ours"))
 
 
 @dataclass(frozen=True)
@@ -255,4 +243,4 @@ class IdentifiabilityOptions:
     @classmethod
     def from_config(cls, section: Mapping | None) -> IdentifiabilityOptions:
         """From the ``calibration.identifiability`` mapping (None or {}: the defaults)."""
-        return cls(**_checked_section(cls, section, "calibration.identifiability"))
+        return cls(**section_items(cls, section, "calibration.identifiability"))

@@ -4,9 +4,10 @@ config/config.yaml, key for key and default for default (docs/model-criticism.md
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 from ..errors import ConfigError
+from ..options import section_items
 
 #: Values of ``fe_extension`` (the viscoelastic-slider recalibration of :mod:`skidsim.criticism.fe_extension`).
 FE_MODES = ("auto", "always", "never")
@@ -66,9 +67,4 @@ class DiagnosisOptions:
     def from_config(cls, section: Mapping | None) -> DiagnosisOptions:
         """The options of a config ``diagnosis:`` section; missing keys take the defaults. Raises
         :class:`ConfigError` naming any unknown key."""
-        section = dict(section or {})
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(section) - known)
-        if unknown:
-            raise ConfigError(f"config diagnosis: unknown key(s) {unknown}; expected some of {sorted(known)}")
-        return cls(**section)
+        return cls(**section_items(cls, section, "diagnosis"))

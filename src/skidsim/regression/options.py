@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 from skidsim.errors import ConfigError, InputError
+from skidsim.options import section_items
 
 from .models import check_model_name
 from .pca import parse_rule
@@ -100,11 +101,7 @@ class RegressionOptions:
     def from_config(cls, section: Mapping | None) -> RegressionOptions:
         """From the config's ``regression:`` mapping (None or {}: the defaults); lists become tuples. Unknown keys
         or bad values raise :class:`~skidsim.errors.ConfigError` naming the key and what was expected."""
-        d = dict(section or {})
-        names = [f.name for f in fields(cls)]
-        unknown = sorted(set(d) - set(names))
-        if unknown:
-            raise ConfigError(f"regression: unknown key(s) {unknown}; expected a subset of {names}")
+        d = section_items(cls, section, "regression")
         for key in _LISTS:
             if key in d:
                 if isinstance(d[key], (str, bytes)) or not hasattr(d[key], "__iter__"):

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields, replace
 
 from skidsim.errors import ConfigError
+from skidsim.options import section_items
 
 
 @dataclass(frozen=True)
@@ -289,11 +290,7 @@ class SolverOptions:
     @classmethod
     def from_dict(cls, d: dict | None) -> SolverOptions:
         """From the ``solver:`` config block; an unknown key raises :class:`ConfigError`."""
-        d = dict(d or {})
-        names = sorted(f.name for f in fields(cls))
-        unknown = sorted(set(d) - set(names))
-        if unknown:
-            raise ConfigError(f"solver: unknown key(s) {unknown}; expected a subset of {names}")
+        d = section_items(cls, d, "solver")
         if d.get("overrides") is None:
             d.pop("overrides", None)
         return cls(**d)

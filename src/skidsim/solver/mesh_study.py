@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 
 from skidsim.errors import ConfigError
 from skidsim.friction import ExponentialDecay
+from skidsim.options import section_items
 
 from .config import SolverConfig
 from .explicit import simulate
@@ -48,11 +49,7 @@ class MeshStudyOptions:
     @classmethod
     def from_dict(cls, d: dict | None) -> MeshStudyOptions:
         """From the ``mesh_study:`` config block; an unknown key raises :class:`ConfigError`."""
-        d = dict(d or {})
-        names = sorted(f.name for f in fields(cls))
-        unknown = sorted(set(d) - set(names))
-        if unknown:
-            raise ConfigError(f"mesh_study: unknown key(s) {unknown}; expected a subset of {names}")
+        d = section_items(cls, d, "mesh_study")
         return cls(**d)
 
 
