@@ -18,6 +18,7 @@ from __future__ import annotations
 import fcntl
 import os
 import shutil
+import stat
 import subprocess
 import sys
 from collections.abc import Callable, Iterable
@@ -137,3 +138,21 @@ def default_dry_run(tmp_path_factory) -> str:
         write_text(d / "dry-run.txt", r.stdout + r.stderr)
 
     return (build_once(tmp_path_factory, "default-dry-run", build) / "dry-run.txt").read_text()
+
+
+@pytest.fixture
+def umask():
+    """Set a umask for the test, restore the old one after."""
+    olds = []
+
+    def set_(mask):
+        olds.append(os.umask(mask))
+
+    yield set_
+    if olds:
+        os.umask(olds[0])
+
+
+def file_mode(path) -> int:
+    """Permission bits of ``path`` (e.g. 0o644)."""
+    return stat.S_IMODE(os.stat(path).st_mode)

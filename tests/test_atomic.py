@@ -3,30 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
-import stat
 
 import pandas as pd
 import pytest
+from conftest import file_mode
 
 from skidsim import atomic
-
-
-@pytest.fixture
-def umask():
-    """Set a umask for the test, restore the old one after."""
-    olds = []
-
-    def set_(mask):
-        olds.append(os.umask(mask))
-
-    yield set_
-    if olds:
-        os.umask(olds[0])
-
-
-def mode(path) -> int:
-    return stat.S_IMODE(os.stat(path).st_mode)
 
 
 def test_failing_writer_leaves_neither_target_nor_temporary(tmp_path):
@@ -64,7 +46,7 @@ def test_success_gives_the_umask_permissions(tmp_path, umask, mask, expected):
     with atomic.atomic_path(tmp_path / "e.dat") as tmp:
         tmp.write_text("e")
     for p in [*paths, tmp_path / "e.dat"]:
-        assert mode(p) == expected, (p.name, oct(mode(p)))
+        assert file_mode(p) == expected, (p.name, oct(file_mode(p)))
 
 
 def test_keyboard_interrupt_leaves_the_old_file_intact(tmp_path):

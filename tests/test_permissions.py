@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import os
-import stat
 
 import numpy as np
 import pytest
+from conftest import file_mode
 
 from skidsim.atomic import current_umask, honour_umask
 from skidsim.exports import write_inp, write_stl
@@ -14,23 +14,6 @@ from skidsim.friction import ExponentialDecay
 from skidsim.reconstruct import Heightfield
 from skidsim.runlog import write_json
 from skidsim.slidermesh import SliderMesh
-
-
-@pytest.fixture
-def umask():
-    """Set a umask for the test, restore the old one after."""
-    olds = []
-
-    def set_(mask):
-        olds.append(os.umask(mask))
-
-    yield set_
-    if olds:
-        os.umask(olds[0])
-
-
-def mode(path) -> int:
-    return stat.S_IMODE(os.stat(path).st_mode)
 
 
 def patch() -> Heightfield:
@@ -52,7 +35,7 @@ def test_mesh_exports_follow_umask(tmp_path, umask, mask, expected):
     write_json(json_path, {"a": 1})
     npz = patch().to_npz(tmp_path / "pavement.npz")
     for p in (stl, inp, json_path, npz):
-        assert mode(p) == expected, (p, oct(mode(p)))
+        assert file_mode(p) == expected, (p, oct(file_mode(p)))
 
 
 def test_honour_umask_sets_open_mode(tmp_path, umask):
@@ -61,4 +44,4 @@ def test_honour_umask_sets_open_mode(tmp_path, umask):
     p.write_text("x")
     os.chmod(p, 0o600)
     honour_umask(p)
-    assert mode(p) == 0o640
+    assert file_mode(p) == 0o640

@@ -58,6 +58,19 @@ from skidsim.calibration.tables import (
     validation_table,
 )
 
+#: names of .identifiability imported on first use (PEP 562): it loads scipy.stats, which the workflow's parse
+#: (prior_reference_sites) and the calibrate / validate_speeds jobs never need
+_IDENTIFIABILITY_NAMES = (
+    "assess",
+    "FLAGS",
+    "SurrogateMap",
+    "table_row",
+    "trace_noise",
+    "profile_intervals",
+    "curve_combinations",
+    "local_uncertainty",
+)
+
 __all__ = [
     "FECache",
     "FEOutcome",
@@ -95,28 +108,8 @@ __all__ = [
     "simulate_speeds",
     "table2",
     "validation_table",
-    "assess",
-    "FLAGS",
-    "SurrogateMap",
-    "table_row",
-    "trace_noise",
-    "profile_intervals",
-    "curve_combinations",
-    "local_uncertainty",
+    *_IDENTIFIABILITY_NAMES,
 ]
-
-#: names of .identifiability imported on first use (PEP 562): it loads scipy.stats, which the workflow's parse
-#: (prior_reference_sites) and the calibrate / validate_speeds jobs never need
-_IDENTIFIABILITY_NAMES = (
-    "assess",
-    "FLAGS",
-    "SurrogateMap",
-    "table_row",
-    "trace_noise",
-    "profile_intervals",
-    "curve_combinations",
-    "local_uncertainty",
-)
 
 
 def __getattr__(name: str):

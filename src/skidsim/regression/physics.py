@@ -16,7 +16,6 @@ transformed column).
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,7 +24,7 @@ import pandas as pd
 from skidsim.errors import InputError
 
 from .splits import inner_splits
-from .subset import subset_test_sse
+from .subset import _nanmedian, subset_test_sse
 
 #: Base model name.
 PHYSICS_OLS = "physics2"
@@ -47,12 +46,6 @@ def _transform(A: np.ndarray, form: str, floor: np.ndarray | None) -> np.ndarray
     if form == "identity":
         return A
     return np.log(np.maximum(A, floor) if floor is not None else A)
-
-
-def _nanmedian(A: np.ndarray) -> np.ndarray:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return np.nanmedian(A, axis=0)
 
 
 def _candidate_forms(A: np.ndarray) -> tuple[str, ...]:
