@@ -8,7 +8,7 @@ CORES ?= 2
 STAMP := $(VENV)/.skidsim-installed
 TEST_STAMP := $(VENV)/.skidsim-test-installed
 
-.PHONY: reproduce test lint setup setup-test system-deps report dryrun clean-results benchmarks test-slurm
+.PHONY: reproduce test test-campaigns lint setup setup-test system-deps report dryrun clean-results benchmarks test-slurm
 
 $(STAMP): requirements.lock pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -40,9 +40,14 @@ system-deps:
 reproduce: $(STAMP)
 	$(BIN)/python -m skidsim.launch --cores $(CORES) $(if $(CONFIG),--configfile $(CONFIG),)
 
-## Run the test suite.
+## Run the test suite (every test but the hidden-effect campaigns through the whole workflow: make test-campaigns).
 test: setup-test
-	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q -m "not campaign" $(PYTEST_ARGS)
+
+## The hidden-effect campaigns through the whole workflow with the real FE (tests marked campaign, minutes each);
+## CI (.ci/run) runs them after make test.
+test-campaigns: setup-test
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q -m campaign $(PYTEST_ARGS)
 
 ## Lint and format check (ruff, snakefmt; pinned in requirements-test.lock, configured in pyproject.toml). Fix with
 ## `$(BIN)/ruff check --fix . && $(BIN)/ruff format . && $(BIN)/snakefmt Snakefile workflow/rules/*.smk`.

@@ -91,6 +91,7 @@ def named(causes: list[dict]) -> dict | None:
 
 
 @pytest.mark.slow
+@pytest.mark.campaign
 def test_workflow_names_a_hidden_metadata_effect(tmp_path):
     """Friction falls with the site's station along the section (an arbitrary metadata column, -0.03 % per ft:
     -6 % at 200 ft, -18 % at 600 ft); the workflow names station_ft between sites and the extension's gain on
@@ -111,6 +112,7 @@ def test_workflow_names_a_hidden_metadata_effect(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.campaign
 def test_workflow_null_campaign_names_nothing(tmp_path):
     """No hidden effect (the truth is the exponential-decay law of the texture): nothing is named and the
     gain record is the baseline. 16 sites (8 sections x 2) to keep the suite within its time budget; the 36-site

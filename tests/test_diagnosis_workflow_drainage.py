@@ -21,6 +21,7 @@ from test_diagnosis_workflow import NO_EFFECTS, named, run_campaign
 
 
 @pytest.mark.slow
+@pytest.mark.campaign
 def test_workflow_names_hidden_macrotexture_drainage(tmp_path):
     effects = NO_EFFECTS.replace("drainage: {enabled: false}", "drainage: {enabled: true, form: squeeze, size: 0.3}")
     out = run_campaign(tmp_path, seed=7, effects=effects)

@@ -28,6 +28,7 @@ SEASONS = """  temperature_range_c: [5.0, 35.0]
 
 
 @pytest.mark.slow
+@pytest.mark.campaign
 def test_workflow_names_a_hidden_temperature_effect(tmp_path):
     effects = NO_EFFECTS.replace("temperature: {enabled: false}", "temperature: {enabled: true}")
     out = run_campaign(tmp_path, seed=7, effects=effects, synthetic_extra=SEASONS)
@@ -47,6 +48,7 @@ def test_workflow_names_a_hidden_temperature_effect(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.campaign
 def test_workflow_names_a_hidden_mix_effect(tmp_path):
     effects = (
         NO_EFFECTS
