@@ -47,7 +47,7 @@ test: setup-test
 ## The hidden-effect campaigns through the whole workflow with the real FE (tests marked campaign, minutes each);
 ## CI (.ci/run) runs them after make test.
 test-campaigns: setup-test
-	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q -m campaign $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(CORES) --dist load -q -m campaign $(PYTEST_ARGS)
 
 ## Lint and format check (ruff, snakefmt; pinned in requirements-test.lock, configured in pyproject.toml). Fix with
 ## `$(BIN)/ruff check --fix . && $(BIN)/ruff format . && $(BIN)/snakefmt Snakefile workflow/rules/*.smk`.

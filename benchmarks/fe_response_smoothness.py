@@ -9,6 +9,7 @@ response has ratios near the geometric factor SN / mu (about 1) and equal for +d
 run twice (the FE is deterministic: the repeat must give the same SN).
 
     .venv/bin/python benchmarks/fe_response_smoothness.py --generator chips --site-index 0 --speeds 40 60
+        [--friction-model penalty --slide-damping-model rayleigh]   # the contact of docs/solver.md
 
 Units: speeds km/h, alpha s/m, mu and SN dimensionless. Output also as CSV with ``--csv``.
 """
@@ -59,6 +60,8 @@ def main(argv=None) -> int:
     ap.add_argument("--dmu", type=float, default=0.01, help="step of mu_s and mu_k")
     ap.add_argument("--dalpha", type=float, default=0.005, help="step of alpha, s/m")
     ap.add_argument("--element-mm", type=float, default=None, help="slider element size (default: campaign preset)")
+    ap.add_argument("--friction-model", choices=["stick_limit", "penalty"], default=None, help="default: the preset's")
+    ap.add_argument("--slide-damping-model", choices=["mass", "rayleigh"], default=None, help="default: the preset's")
     ap.add_argument("--csv", type=Path, default=None)
     args = ap.parse_args(argv)
 
@@ -85,11 +88,16 @@ def main(argv=None) -> int:
         base_depth_mm=mesh["base_depth_mm"],
     )
     over = {} if args.element_mm is None else {"element_mm": args.element_mm}
+    if args.friction_model:
+        over["friction_model"] = args.friction_model
+    if args.slide_damping_model:
+        over["slide_damping_model"] = args.slide_damping_model
     scfg = SolverConfig.campaign(**over)
     tm = site.truth["texture_measures"]
     print(
         f"site {site.truth['site']} ({args.generator}): MPD {tm['mpd_mm']:.2f} mm, "
-        f"micro Sq {tm['micro_sq_mm']:.4f} mm; solver element {scfg.element_mm} mm, slide {scfg.slide_length_mm} mm"
+        f"micro Sq {tm['micro_sq_mm']:.4f} mm; solver element {scfg.element_mm} mm, slide {scfg.slide_length_mm} mm, "
+        f"friction {scfg.friction_model}, slide damping {scfg.slide_damping_model}"
     )
     base = ExponentialDecay(*args.law)
     laws = [("base", base), ("base (repeat)", base)]
@@ -125,13 +133,16 @@ def main(argv=None) -> int:
                     "d_sn": dsn,
                     "d_mu_at_v": dmu,
                     "ratio_dsn_dmu": dsn / dmu if abs(dmu) > 1e-12 else np.nan,
+                    "sn_over_mu_at_v": sn / float(law.mu_kmh(v)),
+                    "mean_slip_speed_ms": float(r.mean_slip_speed_ms),
                     "n_steps": int(r.n_steps),
                     "wall_s": wall,
                 }
             )
             print(
                 f"{v:5.1f} km/h  {name:16s} SN {sn:.4f}  dSN {dsn:+.4f}  d mu(v) {dmu:+.4f}  "
-                f"ratio {rows[-1]['ratio_dsn_dmu']:+.2f}  ({int(r.n_steps)} steps, {wall:.1f} s)",
+                f"ratio {rows[-1]['ratio_dsn_dmu']:+.2f}  SN/mu(v) {sn / float(law.mu_kmh(v)):.3f}  "
+                f"slip speed {r.mean_slip_speed_ms:.2f} m/s  ({int(r.n_steps)} steps, {wall:.1f} s)",
                 flush=True,
             )
     df = pd.DataFrame(rows)

@@ -6,7 +6,7 @@ Usage::
         [--slide-mm 114.3] [--window-mm 5] [--mass-scaling 1] [--pavement random|sinusoid|PATH.npz]
         [--contact-gap vertical|normal] [--penalty-length-mm MM] [--friction-models stick_limit penalty]
         [--slide-damping-model mass|rayleigh] [--slide-damping-per-s 3e4] [--loss-factor 0.2]
-        [--loss-band-hz 1000 100000]
+        [--loss-band-hz 1000 100000] [--friction-stiffness-pa-per-m C_T]
 
 Friction law: the study's mesh-study parameters mu_s 0.4, mu_k 0.35, alpha 0.6 s/m. Pavement: the seeded
 ``RandomTexture`` sampled at 0.1 mm into a Heightfield (default), ``sinusoid`` (analytic, for smoke tests) or a
@@ -66,6 +66,7 @@ def main(argv=None) -> int:
     ap.add_argument("--slide-damping-per-s", type=float, default=3.0e4)
     ap.add_argument("--loss-factor", type=float, default=0.2)
     ap.add_argument("--loss-band-hz", type=float, nargs=2, default=[1.0e3, 1.0e5])
+    ap.add_argument("--friction-stiffness-pa-per-m", type=float, default=None, help="default: SolverConfig's")
     a = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     pav = load_pavement(a.pavement)
@@ -81,6 +82,8 @@ def main(argv=None) -> int:
         loss_factor=a.loss_factor,
         loss_band_hz=tuple(a.loss_band_hz),
     )
+    if a.friction_stiffness_pa_per_m is not None:
+        base = base.replace(friction_stiffness_pa_per_m=a.friction_stiffness_pa_per_m)
     csv = Path(a.csv)
     tables = []
     for model in a.friction_models:

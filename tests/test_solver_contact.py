@@ -128,7 +128,14 @@ def test_rayleigh_fit_and_step_factor():
 def test_penalty_friction_and_rayleigh_on_a_texture_balance_energy_and_shrink_the_step():
     tex = SinusoidalSurface(amplitude_m=0.1e-3, wavelength_x_m=4e-3, wavelength_y_m=5e-3)
     law = ExponentialDecay(0.4, 0.35, 0.6)
-    base = SolverConfig(element_mm=2.0, slide_length_mm=6.0, window_start_mm=2.0, friction_model="penalty")
+    # a tangential penalty 4x the normal one (E / h_z = 5e10 Pa/m at 2 mm), so that it sets the step bound below
+    base = SolverConfig(
+        element_mm=2.0,
+        slide_length_mm=6.0,
+        window_start_mm=2.0,
+        friction_model="penalty",
+        friction_stiffness_pa_per_m=2e11,
+    )
     r0 = simulate(tex, 40, law, base)
     cfg = base.replace(slide_damping_model="rayleigh", loss_band_hz=(1e3, 1e5))
     r1 = simulate(tex, 40, law, cfg)

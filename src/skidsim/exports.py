@@ -349,6 +349,8 @@ def write_inp(
     material: dict | None = None,
     element_type: str = "C3D8R",
     title: str | None = None,
+    push_increments: int = 40,
+    stick_slope_pa_per_m: float | None = None,
 ) -> InpDeck:
     """Write an ABAQUS/CalculiX input deck of the DFT slider on the pavement (SI: m, N, Pa, kg/m^3, s).
 
@@ -371,9 +373,31 @@ def write_inp(
     ``*FRICTION, EXPONENTIAL DECAY`` (mu_s, mu_k, d_c = alpha in s/m); CalculiX has no exponential decay,
     so ``dialect="calculix"`` writes a constant ``mu = law.mu(v)`` at the sliding speed (slip speed = v),
     with stick slope ``penalty / 10``.
+    ``step="push"`` (CalculiX only): a quasi-static frictional push, two ``*STATIC`` steps. Step 1 is the
+    static step above (load ``load_n`` on the holder, top nodes held in x) with friction active; step 2
+    prescribes the x displacement ``slide_distance_m`` (m, default 1 mm) of every top (holder) node, ramped
+    linearly over at most ``1 / push_increments`` of the step per increment (``push_increments`` >= 1; CalculiX
+    may cut an increment back, never make it longer), with the load held. Friction: ``*FRICTION`` with the
+    constant ``mu = law.mu(v)`` at ``speed_kmh`` (pass :class:`skidsim.friction.ConstantFriction` for a given
+    mu) and the stick slope ``stick_slope_pa_per_m`` (Pa/m; default the solver's
+    ``SolverConfig.friction_stiffness_pa_per_m``, 5e10 Pa/m). Matching the stick slope: for node-to-surface
+    contact CalculiX's tangential spring of a slave node is the stick slope times the node's slave area
+    (``springforc_n2f``: ``xk = lambda * springarea``), the elastic-stick/return-mapping law of
+    ``friction_model="penalty"`` (``k_t = friction_stiffness_pa_per_m * tributary area``); the slave areas of
+    the slider's uniform bottom grid equal our tributary areas, so ``stick_slope_pa_per_m =
+    friction_stiffness_pa_per_m`` is the same law node by node (for surface-to-surface contact it is the same
+    traction-slip slope, integrated over the faces). Practical notes (CalculiX 2.20, 2 mm slider mesh): use
+    ``contact="node to surface"`` (the nodal law of our solver; surface to surface integrates over the slave
+    faces cut by every pavement facet, about 6x slower on a 0.2 mm pavement grid) and ``element_type="C3D8"``
+    (C3D8R hourglasses under the point-like contact forces); with a stick slope 4x the normal penalty (2e11
+    against E / h_z = 5e10 Pa/m) step 1 on an egg-box texture did not converge (contact elements flip between
+    iterations), with a normal penalty of 10 E / h_z it does. Every increment of step 2 prints the total
+    reaction of the pavement nodes (``*NODE PRINT, NSET=PAVE_ALL, TOTALS=ONLY``: RF), the slider displacements
+    (U, with the holder's in it) and the contact stresses (``*CONTACT PRINT``: CSTR); read them with
+    :func:`parse_push_history`.
     """
-    if step not in ("static", "dynamic"):
-        raise InputError(None, "step 'static' or 'dynamic'", column="step", got=step)
+    if step not in ("static", "dynamic", "push"):
+        raise InputError(None, "step 'static', 'dynamic' or 'push'", column="step", got=step)
     if dialect not in ("calculix", "abaqus"):
         raise InputError(None, "dialect 'calculix' or 'abaqus'", column="dialect", got=dialect)
     if holder not in ("rigid", "distributed"):
@@ -384,6 +408,23 @@ def write_inp(
         raise InputError(None, "a positive load in N", column="load_n", got=load_n)
     if element_type not in ("C3D8R", "C3D8"):
         raise InputError(None, "element_type 'C3D8R' or 'C3D8'", column="element_type", got=element_type)
+    if step == "push":
+        if dialect != "calculix":
+            raise InputError(None, "dialect 'calculix' for step 'push'", column="dialect", got=dialect)
+        if int(push_increments) < 1:
+            raise InputError(None, "at least one increment", column="push_increments", got=push_increments)
+        if slide_distance_m is None:
+            slide_distance_m = 1e-3
+        if not (np.isfinite(slide_distance_m) and slide_distance_m > 0):
+            raise InputError(None, "a positive push distance in m", column="slide_distance_m", got=slide_distance_m)
+        if stick_slope_pa_per_m is None:
+            from .solver.config import SolverConfig
+
+            stick_slope_pa_per_m = SolverConfig().friction_stiffness_pa_per_m
+        if not (np.isfinite(stick_slope_pa_per_m) and stick_slope_pa_per_m > 0):
+            raise InputError(
+                None, "a positive stick slope in Pa/m", column="stick_slope_pa_per_m", got=stick_slope_pa_per_m
+            )
     mat = dict(RUBBER, **(material or {}))
     hf = heightfield
     L, W, _ = slider.size_m
@@ -481,13 +522,17 @@ def write_inp(
             w(f"** law: mu_s={law.mu_s:.8g}, mu_k={law.mu_k:.8g}, alpha={law.alpha:.8g} s/m; v={v_ms:.6g} m/s\n")
             w(f"*FRICTION\n{mu_eq:.8g}, {kpen / 10.0:.6e}\n")
             notes.append("calculix dynamic deck: constant mu = law.mu(speed) instead of exponential decay")
+    elif step == "push":
+        mu_eq = float(law.mu(v_ms))
+        w(f"** Quasi-static push: constant mu = law.mu(v) at v={v_ms:.6g} m/s; stick slope in Pa/m.\n")
+        w(f"*FRICTION\n{mu_eq:.8g}, {stick_slope_pa_per_m:.6e}\n")
     ctype = contact.upper()
     if dialect == "abaqus" and step == "dynamic":
         w("*CONTACT PAIR, INTERACTION=SLIDER_ROAD, MECHANICAL CONSTRAINT=PENALTY\nSLIDER_FACE, PAVE_FACE\n")
     else:
         w(f"*CONTACT PAIR, INTERACTION=SLIDER_ROAD, TYPE={ctype}\nSLIDER_FACE, PAVE_FACE\n")
     w("*BOUNDARY\nPAVE_ALL, 1, 3\nSLIDER_TOP, 2, 2\n")
-    if step == "static":
+    if step in ("static", "push"):
         w("SLIDER_TOP, 1, 1\n")
     if holder == "rigid":
         w("*EQUATION\n")
@@ -498,17 +543,26 @@ def write_inp(
         w(f"*AMPLITUDE, NAME=SLIDE\n0.0, 0.0, {T:.10e}, 1.0\n")
         w("*INITIAL CONDITIONS, TYPE=VELOCITY\n")
         w(_fmt_rows(s_ids, np.column_stack([np.ones(ns), np.full(ns, v_ms)]), "%.10g"))
-    w("*STEP, INC=1000\n" if step == "static" else "*STEP, INC=100000000\n")
-    if step == "static":
+    if holder == "rigid":
+        cload = f"{ref}, 3, {-load_n:.10e}\n"
+    else:
+        cload = _fmt_rows(top_ids, np.column_stack([np.full(len(top_ids), 3), -load_n * trib / trib.sum()]), "%.10g")
+    if step == "push":
+        # step 1: the normal load on the holder (held in x), friction active; step 2 (below): the push
+        w("** Step 1: normal load. Step 2: x displacement of the holder (top) nodes, load held.\n")
+        w("*STEP, INC=1000\n*STATIC\n0.25, 1.0, 1e-6, 1.0\n*CLOAD\n" + cload)
+        w("*NODE PRINT, NSET=PAVE_ALL, TOTALS=ONLY\nRF\n*END STEP\n")
+    w("*STEP, INC=1000\n" if step in ("static", "push") else "*STEP, INC=100000000\n")
+    if step == "push":
+        dinc = 1.0 / int(push_increments)
+        w(f"*STATIC\n{dinc:.10g}, 1.0, {1e-4 * dinc:.6g}, {dinc:.10g}\n")
+        w(f"*BOUNDARY\nSLIDER_TOP, 1, 1, {slide_distance_m:.10e}\n")
+    elif step == "static":
         w("*STATIC\n0.25, 1.0, 1e-6, 1.0\n")
     else:
         w(f"*DYNAMIC, EXPLICIT\n{1e-7:.6e}, {slide_distance_m / v_ms:.10e}\n")
         w(f"*BOUNDARY, AMPLITUDE=SLIDE\nSLIDER_TOP, 1, 1, {slide_distance_m:.10e}\n")
-    w("*CLOAD\n")
-    if holder == "rigid":
-        w(f"{ref}, 3, {-load_n:.10e}\n")
-    else:
-        w(_fmt_rows(top_ids, np.column_stack([np.full(len(top_ids), 3), -load_n * trib / trib.sum()]), "%.10g"))
+    w("*CLOAD\n" + cload)
     if dialect == "calculix" or step == "static":
         w("*NODE PRINT, NSET=PAVE_ALL, TOTALS=ONLY\nRF\n")
         w("*NODE PRINT, NSET=SLIDER_ALL\nU\n")
@@ -617,6 +671,112 @@ def parse_dat(path: str | Path) -> dict:
             a = np.array(blocks[key][1])
             out[name] = (a[:, 0].astype(np.int64), a[:, 1:4])
     return out
+
+
+def parse_dat_history(path: str | Path) -> list[dict]:
+    """Every table block of a CalculiX ``.dat`` file, in file order (one per output increment and set).
+
+    Each block is ``{"kind": "total force" | "displacements" | "contact stress", "set": str | None, "time":
+    float, "rows": (n, k) array}``; ``time`` is CalculiX's total time (step 1 ends at 1.0, step 2 at 2.0, ...);
+    the rows are as printed (``fx, fy, fz`` in N for totals; node id then values, SI, otherwise). Raises
+    :class:`CalculixError` when the file cannot be read or has no table.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise CalculixError(f"{path}: cannot read CalculiX output ({exc})") from None
+    head = re.compile(
+        r"^\s*(total force|displacements|contact stress)\b.*?(?:for set (\S+) )?and time\s+(" + _FLOAT + r")\s*$",
+        re.IGNORECASE,
+    )
+    blocks: list[dict] = []
+    rows = None
+    for line in text.splitlines():
+        m = head.match(line)
+        if m:
+            rows = []
+            blocks.append({"kind": m.group(1).lower(), "set": m.group(2), "time": float(m.group(3)), "rows": rows})
+            continue
+        if rows is None or not line.split():
+            continue
+        try:
+            rows.append([float(p.replace("D", "E")) for p in line.split()])
+        except ValueError:
+            rows = None
+    if not blocks:
+        raise CalculixError(f"{path}: no result tables (total force, displacements, contact stress) found")
+    for b in blocks:
+        b["rows"] = np.array(b["rows"], dtype=float).reshape(len(b["rows"]), -1)
+    return blocks
+
+
+@dataclass(frozen=True)
+class PushHistory:
+    """Per-increment results of step 2 of a ``step="push"`` deck (:func:`write_inp`), SI units.
+
+    ``time``: CalculiX total time (1 < t <= 2 in the push step); ``holder_x_m``: x displacement of the holder
+    (reference top node, m); ``force_n``: ``(n, 3)`` sum of the reaction forces (N) at the fixed pavement nodes,
+    as :attr:`CalculixResult.total_force_n` (``force_n[:, 2]`` the normal load, positive; ``force_n[:, 0]``
+    negative when the slider is pushed in +x); ``ratio = -force_n[:, 0] / force_n[:, 2]``: the resisting
+    tangential over the normal force (the SN of :func:`skidsim.solver.simulate`); ``contact_nodes``:
+    slave nodes with positive pressure; ``slip_nodes``: those whose shear stress is at the Coulomb limit
+    (``|tau| >= (1 - slip_tolerance) mu p``).
+    """
+
+    time: np.ndarray
+    holder_x_m: np.ndarray
+    force_n: np.ndarray
+    ratio: np.ndarray
+    contact_nodes: np.ndarray
+    slip_nodes: np.ndarray
+
+    def onset_index(self) -> int | None:
+        """Index of the first increment in which every contact node slips (gross sliding), or ``None``."""
+        full = np.flatnonzero((self.contact_nodes > 0) & (self.slip_nodes == self.contact_nodes))
+        return int(full[0]) if full.size else None
+
+
+def parse_push_history(path: str | Path, deck: InpDeck, slip_tolerance: float = 1e-3) -> PushHistory:
+    """Read the push step's increments from the ``.dat`` of a :func:`write_inp` ``step="push"`` deck.
+
+    Per increment of time > 1: the total reaction force of the ``PAVE_ALL`` set, the holder displacement (the
+    deck's reference node) and the contact state (pressure and shear stresses of ``*CONTACT PRINT``, Pa).
+    Raises :class:`CalculixError` when a table is missing.
+    """
+    if deck.step != "push" or deck.mu_equivalent is None:
+        raise InputError(None, "a deck written with step='push'", column="deck", got=deck.step)
+    blocks = parse_dat_history(path)
+    by_time: dict[float, dict] = {}
+    for b in blocks:
+        if b["time"] > 1.0 + 1e-9:
+            by_time.setdefault(b["time"], {})[b["kind"]] = b
+    times = sorted(by_time)
+    if not times:
+        raise CalculixError(f"{path}: no increment of the push step (time > 1) found")
+    mu = deck.mu_equivalent
+    hx, force, n_c, n_s = [], [], [], []
+    for t in times:
+        rec = by_time[t]
+        if "total force" not in rec or "displacements" not in rec:
+            raise CalculixError(f"{path}: time {t}: missing total force or displacements table")
+        force.append(rec["total force"]["rows"][0, :3])
+        d = rec["displacements"]["rows"]
+        hit = np.flatnonzero(d[:, 0].astype(np.int64) == deck.ref_node)
+        if not hit.size:
+            raise CalculixError(f"{path}: time {t}: no displacement of the holder node {deck.ref_node}")
+        hx.append(d[hit[0], 1])
+        c = rec.get("contact stress")
+        if c is None or not len(c["rows"]):
+            n_c.append(0)
+            n_s.append(0)
+            continue
+        p, tau = c["rows"][:, 1], np.hypot(c["rows"][:, 2], c["rows"][:, 3])
+        on = p > 0
+        n_c.append(int(on.sum()))
+        n_s.append(int((on & (tau >= (1.0 - slip_tolerance) * mu * p)).sum()))
+    force = np.array(force)
+    return PushHistory(np.array(times), np.array(hx), force, -force[:, 0] / force[:, 2], np.array(n_c), np.array(n_s))
 
 
 def run_calculix(

@@ -36,7 +36,8 @@ def return_map(f_trial_n: np.ndarray, limit_n: np.ndarray) -> tuple[np.ndarray, 
     """
     mag = np.sqrt((f_trial_n * f_trial_n).sum(axis=0))
     stick = mag <= limit_n
-    scale = np.where(stick, 1.0, limit_n / np.where(mag > 0.0, mag, 1.0))
+    # min(1, limit / |f|): 1 inside the disc (also at |f| = 0), the radial scale-back outside
+    scale = np.minimum(1.0, limit_n / np.maximum(mag, np.finfo(float).tiny))
     return f_trial_n * scale, stick
 
 
@@ -62,7 +63,12 @@ def penalty_friction(
     Returns ``(f, stick)`` as :func:`return_map`.
     """
     nx, ny, nz = normal
-    trial = tangential_part(f_old_n, nx, ny, nz) - k_t_n_per_m * tangential_part(du_t_m, nx, ny, nz)
+    # P_t f_old - k_t P_t du = P_t (f_old - k_t du): the projection is linear, one projection (in place) for two
+    trial = f_old_n - k_t_n_per_m * du_t_m
+    an = trial[0] * nx + trial[1] * ny + trial[2] * nz
+    trial[0] -= an * nx
+    trial[1] -= an * ny
+    trial[2] -= an * nz
     return return_map(trial, limit_n)
 
 

@@ -67,6 +67,14 @@ log = logging.getLogger("skidsim.solver")
 #: preload check, VTU, progress).
 PHASES = ("internal_force", "damping_load", "contact", "friction", "update", "output")
 
+#: sliding steps between direct evaluations of K u when it is otherwise updated by dt K v (Rayleigh damping)
+KU_REFRESH_STEPS = 1024
+
+
+def _spring_energy(force_n: np.ndarray, k_n_per_m: np.ndarray) -> float:
+    """Energy (J) stored in springs of stiffness ``k_n_per_m`` (n,) carrying forces ``force_n`` (3, n) (N)."""
+    return 0.5 * float(((force_n * force_n).sum(axis=0) / k_n_per_m).sum())
+
 
 def material_from_config(config: SolverConfig) -> RubberMaterial:
     """The :class:`RubberMaterial` of a :class:`SolverConfig`."""
@@ -278,9 +286,15 @@ def _simulate(
     rayleigh = config.slide_damping_model == "rayleigh"
     alpha_r, beta_r = rayleigh_coefficients(config.loss_factor, config.loss_band_hz) if rayleigh else (0.0, 0.0)
     kern_beta = None
+    # elastic slider with Rayleigh damping: one kernel product per sliding step, K v(n-1/2), serves both the
+    # damping force -beta K v and K u(n) = K u(n-1) + dt K v(n-1/2) (linear in u; recomputed from u every
+    # KU_REFRESH_STEPS steps so that rounding cannot accumulate). With Prony terms the force is not linear in u
+    # alone (history), so there the damping has its own product.
+    incremental_ku = rayleigh and not kern.g.size
     if rayleigh:
         dt *= damped_step_factor(omega, alpha_r, beta_r)
-        kern_beta = StructuredKernel(mesh, beta_r * kern.k)  # stiffness-proportional damping, N s/m
+        if not incremental_ku:
+            kern_beta = StructuredKernel(mesh, beta_r * kern.k)  # stiffness-proportional damping, N s/m
 
     n_pre_max = max(1, int(math.ceil(config.preload_time_s / dt)))
     n_ramp = min(n_pre_max, max(1, int(math.ceil(config.preload_ramp_s / dt))))
@@ -301,6 +315,8 @@ def _simulate(
     tmp = np.zeros_like(X)
     fdamp = np.zeros_like(X)
     fbeta = np.zeros_like(X) if kern_beta is not None else None
+    nku = np.zeros_like(X) if incremental_ku else None  # -K u(n), N
+    nkv = np.zeros_like(X) if incremental_ku else None  # -K v(n-1/2), N/s
     dt_minv = dt * minv[None]
     # bottom face as flat views (3, (ny+1)(nx+1)): each component's face block is contiguous in the layout
     ub, vb, fb = u[:, 0].reshape(3, -1), v[:, 0].reshape(3, -1), f[:, 0].reshape(3, -1)
@@ -309,6 +325,7 @@ def _simulate(
     m_bf = m_b.ravel()
     k_pen_f = k_pen.ravel()
     k_fric_f = k_fric.ravel()
+    k_fric_dt_f = k_fric_f * dt  # N s/m: the tangential penalty on a velocity over one step
     ft_state = np.zeros((3, m_bf.size))  # penalty friction: tangential force per bottom node, N
     fric_energy = 0.0  # J stored in the tangential penalty springs
     area_bf = area_b.ravel()
@@ -372,6 +389,8 @@ def _simulate(
             )
             v[0] += v_slide
             kern.force(u, fint)
+            if fric_penalty:
+                fric_energy = _spring_energy(ft_state, k_fric_f)
             state0 = dict(
                 kinetic=0.5 * float(np.vdot(mass, (v * v).sum(axis=0))),
                 strain=kern.strain_energy(),
@@ -380,7 +399,17 @@ def _simulate(
             )
         # ---- internal force (and Prony history) at u(n)
         t_a = perf()
-        kern.force(u, f, negate=True)  # f = -f_int, bit for bit
+        if sliding and incremental_ku:
+            kern.force(v, nkv, negate=True)
+            if (step - n_pre) % KU_REFRESH_STEPS == 0:
+                kern.force(u, nku, negate=True)
+            else:
+                np.multiply(nkv, dt, out=tmp)
+                nku += tmp
+            np.multiply(nkv, beta_r, out=f)  # the Rayleigh stiffness part -beta K v, here rather than below
+            f += nku
+        else:
+            kern.force(u, f, negate=True)  # f = -f_int, bit for bit
         if kern.g.size:
             diss = kern.relax(dt)
             if sliding:
@@ -451,11 +480,11 @@ def _simulate(
             vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
             s = np.sqrt(np.maximum((vt * vt).sum(axis=0) - vn * vn, 0.0))
             mu_n = law.mu(s) * N
-            fric, stuck = penalty_friction(ft_state[:, ia], vt * dt, k_fric_f[ia], mu_n, (nxh, nyh, nzh))
+            # (k_t dt) v = k_t du: the step's displacement increment without forming it
+            fric, stuck = penalty_friction(ft_state[:, ia], vt, k_fric_dt_f[ia], mu_n, (nxh, nyh, nzh))
             n_stick = int(np.count_nonzero(stuck))  # nodes in the elastic (stick) regime (diagnostic)
             ft_state.fill(0.0)  # nodes out of contact lose their tangential force
             ft_state[:, ia] = fric
-            fric_energy = 0.5 * float(((fric * fric).sum(axis=0) / k_fric_f[ia]).sum())
         else:
             vt = vb[:, ia] + fb[:, ia] * inv_mb_dt[ia]  # trial velocity without friction
             vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
@@ -485,6 +514,8 @@ def _simulate(
                 fd_dot_v_old = float(np.vdot(fdamp, v))  # avoids copying v: f_d.(v_old + v_new) in two dots
             if fbeta is not None:
                 fb_dot_v_old = float(np.vdot(fbeta, v))
+            elif nkv is not None:
+                fb_dot_v_old = beta_r * float(np.vdot(nkv, v))
         np.multiply(f, dt_minv, out=tmp)
         v += tmp
         v[0, -1] = vx_frame
@@ -503,6 +534,8 @@ def _simulate(
                 e["external"] += h * fd_frame
             if fbeta is not None:
                 e["damping"] -= h * (fb_dot_v_old + float(np.vdot(fbeta, v)))
+            elif nkv is not None:  # the Rayleigh stiffness part -beta K v(n-1/2) is beta * nkv
+                e["damping"] -= h * (fb_dot_v_old + beta_r * float(np.vdot(nkv, v)))
         np.multiply(v, dt, out=tmp)
         u += tmp
         t_b = perf()
@@ -556,6 +589,8 @@ def _simulate(
 
     # ---- energies of the sliding phase
     kern.force(u, fint)
+    if fric_penalty:
+        fric_energy = _spring_energy(ft_state, k_fric_f)
     kinetic = 0.5 * float(np.vdot(mass, (v * v).sum(axis=0)))
     # the tangential penalty springs' stored energy is contact energy; the friction entry is what they dissipate
     d_fric_elastic = fric_energy - state0["friction_elastic"]
