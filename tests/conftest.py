@@ -156,3 +156,27 @@ def umask():
 def file_mode(path) -> int:
     """Permission bits of ``path`` (e.g. 0o644)."""
     return stat.S_IMODE(os.stat(path).st_mode)
+
+
+def corrugation_flank(slope: float, wavelength_m: float, x_m: float):
+    """A long sinusoidal corrugation along x (uniform in y) whose steepest rising flank, slope ``slope``, lies at
+    ``x_m`` (m); extent x 0-50 mm, y -10 to 10 mm: the surface of the onset-of-sliding tests (a block pushed up a
+    slope tan theta: F_x / F_z = (mu + tan theta) / (1 - mu tan theta))."""
+    import math
+
+    from skidsim.solver import SinusoidalSurface
+
+    k = 2 * math.pi / wavelength_m
+    return SinusoidalSurface(
+        amplitude_m=slope / k,
+        wavelength_x_m=wavelength_m,
+        wavelength_y_m=math.inf,
+        phase=-math.pi / 2 - k * x_m,
+        extent_m=(0.0, 0.05, -0.01, 0.01),
+    )
+
+
+def simulate_centre_m(hf, cfg, slider) -> tuple[float, float]:
+    """The slider's plan centre (m) where :func:`skidsim.solver.simulate` starts it: rear edge ``edge_margin_mm``
+    after the pavement's x_min, centred in y (for a CalculiX deck of the same placement)."""
+    return (hf.extent[0] + cfg.edge_margin_mm * 1e-3 + 0.5 * slider.size_m[0], 0.5 * (hf.extent[2] + hf.extent[3]))

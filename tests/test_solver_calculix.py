@@ -11,6 +11,7 @@ import shutil
 
 import numpy as np
 import pytest
+from conftest import simulate_centre_m
 
 from skidsim.friction import ConstantFriction, ExponentialDecay
 from skidsim.slidermesh import SliderMesh
@@ -37,8 +38,7 @@ def test_static_indentation_matches_calculix(tmp_path):
         preload_time_s=2e-3,
     )
     slider = SliderMesh.box(cfg.slider_length_mm, cfg.slider_width_mm, cfg.slider_thickness_mm, cfg.element_mm)
-    # the same plan position as simulate(): rear edge edge_margin_mm after x_min, centred in y
-    centre = (hf.extent[0] + cfg.edge_margin_mm * 1e-3 + 0.5 * slider.size_m[0], 0.5 * (hf.extent[2] + hf.extent[3]))
+    centre = simulate_centre_m(hf, cfg, slider)
     deck = write_inp(
         tmp_path / "static.inp",
         slider,

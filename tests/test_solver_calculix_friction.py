@@ -18,12 +18,12 @@ interpolant). The force ratio is the pavement's resisting F_x over F_z.
    the exact slope) and the ratios are compared at the onset and as means over whole cells (two cells).
 """
 
-import math
 import shutil
 import time
 
 import numpy as np
 import pytest
+from conftest import corrugation_flank, simulate_centre_m
 from scipy import ndimage
 
 from skidsim.friction import ConstantFriction
@@ -45,8 +45,7 @@ def _push(tmp_path, hf, cfg, push_m, increments):
     from skidsim.exports import parse_push_history, run_calculix, write_inp
 
     slider = SliderMesh.box(cfg.slider_length_mm, cfg.slider_width_mm, cfg.slider_thickness_mm, cfg.element_mm)
-    # the plan position of simulate(): rear edge edge_margin_mm after x_min, centred in y
-    centre = (hf.extent[0] + cfg.edge_margin_mm * 1e-3 + 0.5 * slider.size_m[0], 0.5 * (hf.extent[2] + hf.extent[3]))
+    centre = simulate_centre_m(hf, cfg, slider)
     deck = write_inp(
         tmp_path / "push.inp",
         slider,
@@ -77,14 +76,7 @@ def test_push_up_the_flank_onset_ratio_matches_calculix_and_analytic(tmp_path):
     slope, lam = 0.2, 0.2
     cfg = BASE.replace(slide_length_mm=1.0, window_start_mm=0.3)
     x_front_mid = 0.5e-3 + 20e-3 + 0.5e-3  # front edge at mid-slide, m
-    k = 2 * math.pi / lam
-    surf = SinusoidalSurface(
-        amplitude_m=slope / k,
-        wavelength_x_m=lam,
-        wavelength_y_m=math.inf,
-        phase=-math.pi / 2 - k * x_front_mid,
-        extent_m=(0.0, 0.05, -0.01, 0.01),
-    )
+    surf = corrugation_flank(slope, lam, x_front_mid)
     hf = to_heightfield(surf, 1e-3)
     analytic = (MU + slope) / (1 - MU * slope)
     deck, h, wall = _push(tmp_path, hf, cfg, 0.6e-3, 15)

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import corrugation_flank
 
 from skidsim.errors import ConfigError
 from skidsim.friction import ConstantFriction, ExponentialDecay
@@ -98,14 +99,7 @@ def test_push_up_the_flank_of_a_sinusoid_gives_the_onset_force_ratio(friction_mo
         element_mm=2.0, slide_length_mm=2.0, window_start_mm=0.5, friction_model=friction_model, edge_margin_mm=0.5
     )
     x_front_mid = 0.5e-3 + 20e-3 + 1.0e-3  # front edge at mid-slide, m
-    k = 2 * math.pi / lam
-    surf = SinusoidalSurface(
-        amplitude_m=slope / k,
-        wavelength_x_m=lam,
-        wavelength_y_m=math.inf,
-        phase=-math.pi / 2 - k * x_front_mid,
-        extent_m=(0.0, 0.05, -0.01, 0.01),
-    )
+    surf = corrugation_flank(slope, lam, x_front_mid)
     assert surf.evaluate(np.array([x_front_mid]), np.array([0.0]))[1][0] == pytest.approx(slope)
     r = simulate(surf, 1.0, ConstantFriction(mu), cfg)  # 1 km/h: quasi-static
     assert r.sn == pytest.approx((mu + slope) / (1 - mu * slope), rel=0.001)  # measured -0.006 %
