@@ -628,47 +628,19 @@ _FLOAT = r"[-+]?\d+\.\d*(?:[EeDd][-+]?\d+)?"
 
 
 def parse_dat(path: str | Path) -> dict:
-    """Parse the last time block of each table in a CalculiX ``.dat`` file.
+    """Parse the last time block of each table in a CalculiX ``.dat`` file (:func:`parse_dat_history`'s blocks).
 
     Returns ``{"time": float, "total_force": (fx, fy, fz) | None, "displacements": (ids, (n, 3)) | None,
     "contact": (ids, (n, 3) press/tang1/tang2) | None}``; raises :class:`CalculixError` on a bad file.
     """
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise CalculixError(f"{path}: cannot read CalculiX output ({exc})") from None
-    head = re.compile(r"^\s*(total force|displacements|contact stress)\b.*time\s+(" + _FLOAT + r")\s*$", re.IGNORECASE)
-    blocks: dict[str, tuple[float, list[list[float]]]] = {}
-    cur = None
-    t_last = None
-    for line in text.splitlines():
-        m = head.match(line)
-        if m:
-            kind = m.group(1).lower()
-            t = float(m.group(2))
-            t_last = t if t_last is None else max(t_last, t)
-            cur = [kind, t, []]
-            blocks.setdefault(kind, (t, []))
-            blocks[kind] = (t, cur[2])
-            continue
-        if cur is None:
-            continue
-        parts = line.split()
-        if not parts:
-            continue
-        try:
-            cur[2].append([float(p.replace("D", "E")) for p in parts])
-        except ValueError:
-            cur = None
-    if t_last is None:
-        raise CalculixError(f"{path}: no result tables (total force, displacements, contact stress) found")
-    out: dict = {"time": t_last, "total_force": None, "displacements": None, "contact": None}
-    if "total force" in blocks and blocks["total force"][1]:
-        out["total_force"] = tuple(blocks["total force"][1][0][:3])
+    blocks = parse_dat_history(path)
+    last = {b["kind"]: b for b in blocks}  # file order: the last block of each kind wins
+    out: dict = {"time": max(b["time"] for b in blocks), "total_force": None, "displacements": None, "contact": None}
+    if "total force" in last and len(last["total force"]["rows"]):
+        out["total_force"] = tuple(float(x) for x in last["total force"]["rows"][0][:3])
     for key, name in (("displacements", "displacements"), ("contact stress", "contact")):
-        if key in blocks and blocks[key][1]:
-            a = np.array(blocks[key][1])
+        if key in last and len(last[key]["rows"]):
+            a = last[key]["rows"]
             out[name] = (a[:, 0].astype(np.int64), a[:, 1:4])
     return out
 
@@ -687,7 +659,7 @@ def parse_dat_history(path: str | Path) -> list[dict]:
     except OSError as exc:
         raise CalculixError(f"{path}: cannot read CalculiX output ({exc})") from None
     head = re.compile(
-        r"^\s*(total force|displacements|contact stress)\b.*?(?:for set (\S+) )?and time\s+(" + _FLOAT + r")\s*$",
+        r"^\s*(total force|displacements|contact stress)\b(?:.*?for set (\S+) )?.*time\s+(" + _FLOAT + r")\s*$",
         re.IGNORECASE,
     )
     blocks: list[dict] = []
@@ -706,8 +678,8 @@ def parse_dat_history(path: str | Path) -> list[dict]:
             rows = None
     if not blocks:
         raise CalculixError(f"{path}: no result tables (total force, displacements, contact stress) found")
-    for b in blocks:
-        b["rows"] = np.array(b["rows"], dtype=float).reshape(len(b["rows"]), -1)
+    for b in blocks:  # a header followed by no number row gives a (0, 0) table
+        b["rows"] = np.array(b["rows"], dtype=float) if b["rows"] else np.empty((0, 0))
     return blocks
 
 
