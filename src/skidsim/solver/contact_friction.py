@@ -44,7 +44,11 @@ def return_map(f_trial_n: np.ndarray, limit_n: np.ndarray) -> tuple[np.ndarray, 
 def tangential_part(a: np.ndarray, nx: np.ndarray, ny: np.ndarray, nz: np.ndarray) -> np.ndarray:
     """The part of vectors ``a`` (3, n) in the plane normal to the unit normals ``(nx, ny, nz)`` (new array)."""
     an = a[0] * nx + a[1] * ny + a[2] * nz
-    return np.stack([a[0] - an * nx, a[1] - an * ny, a[2] - an * nz])
+    t = a.copy()
+    t[0] -= an * nx
+    t[1] -= an * ny
+    t[2] -= an * nz
+    return t
 
 
 def penalty_friction(
@@ -57,19 +61,14 @@ def penalty_friction(
     """One step of the penalty friction law (see the module docstring).
 
     f_old_n: (3, n) tangential forces (N) of the previous step (0 for nodes that just came into contact).
-    du_t_m: (3, n) displacement increments (m) of the nodes over the step (projected here).
+    du_t_m: (3, n) displacement increments (m) of the nodes over the step (projected here); only the product
+    ``k_t_n_per_m * du_t_m`` enters, so the solver passes the velocities (m/s) with ``k_t dt`` (N s/m).
     k_t_n_per_m: (n,) tangential penalty stiffness (N/m) = stiffness per area x tributary area.
     limit_n: (n,) slip limit mu(s) N (N). normal: unit surface normals (nx, ny, nz), each (n,).
     Returns ``(f, stick)`` as :func:`return_map`.
     """
-    nx, ny, nz = normal
-    # P_t f_old - k_t P_t du = P_t (f_old - k_t du): the projection is linear, one projection (in place) for two
-    trial = f_old_n - k_t_n_per_m * du_t_m
-    an = trial[0] * nx + trial[1] * ny + trial[2] * nz
-    trial[0] -= an * nx
-    trial[1] -= an * ny
-    trial[2] -= an * nz
-    return return_map(trial, limit_n)
+    # P_t f_old - k_t P_t du = P_t (f_old - k_t du): the projection is linear, one projection for two
+    return return_map(tangential_part(f_old_n - k_t_n_per_m * du_t_m, *normal), limit_n)
 
 
 def rayleigh_coefficients(loss_factor: float, band_hz: tuple[float, float]) -> tuple[float, float]:
