@@ -554,9 +554,10 @@ def test_options_defaults_are_the_config_and_unknown_keys_are_refused():
 
 
 def test_fe_cache_key_of_the_default_solver_is_stable():
-    """The default campaign solver's cache key is the one the default run's FE caches carry (commit 1d3ab97,
-    key_solver '333e041a6377'); a solver model chosen away from its default, or a parameter of a model in use,
-    changes it, while a parameter of an unused model does not."""
+    """The default campaign solver's cache key is the one the default run's FE caches carry (penalty friction and
+    Rayleigh slide damping, key_solver '7d15d1d16cf2'; '333e041a6377' with the stick limit and mass damping of
+    the first releases); a solver model chosen away from its default, or a parameter of a model in use, changes
+    it, while a parameter of an unused model does not."""
     import yaml
 
     from skidsim.calibration.site import solver_cache_key
@@ -567,11 +568,13 @@ def test_fe_cache_key_of_the_default_solver_is_stable():
     def digest(**overrides):
         return config_digest(solver_cache_key(solver_config({**cfg, "overrides": overrides})))
 
-    assert digest() == "333e041a6377"
-    assert digest(friction_stiffness_pa_per_m=1e11) == digest()  # the stick-limit model does not read it
-    assert digest(loss_factor=0.3) == digest()  # the mass-proportional damping does not read it
-    penalty = digest(friction_model="penalty")
-    assert penalty != digest()
-    assert digest(friction_model="penalty", friction_stiffness_pa_per_m=1e11) != penalty
-    assert digest(slide_damping_model="rayleigh") != digest()
-    assert digest(slide_damping_model="rayleigh", loss_factor=0.3) != digest(slide_damping_model="rayleigh")
+    assert digest() == "7d15d1d16cf2"
+    old = dict(friction_model="stick_limit", slide_damping_model="mass")
+    assert digest(**old) == "333e041a6377"
+    # the stick limit does not read the tangential penalty, the mass-proportional damping not the loss factor
+    assert digest(**old, friction_stiffness_pa_per_m=1e11, loss_factor=0.3) == digest(**old)
+    assert digest(friction_stiffness_pa_per_m=1e11) != digest()
+    assert digest(loss_factor=0.3) != digest()
+    assert digest(slide_damping_per_s=1e5) == digest()  # Rayleigh replaces the mass-proportional dashpots
+    assert digest(friction_model="stick_limit") not in (digest(), digest(**old))
+    assert digest(slide_damping_model="mass") not in (digest(), digest(**old))

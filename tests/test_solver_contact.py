@@ -129,6 +129,7 @@ def test_penalty_friction_and_rayleigh_on_a_texture_balance_energy_and_shrink_th
         window_start_mm=2.0,
         friction_model="penalty",
         friction_stiffness_pa_per_m=2e11,
+        slide_damping_model="mass",
     )
     r0 = simulate(tex, 40, law, base)
     cfg = base.replace(slide_damping_model="rayleigh", loss_band_hz=(1e3, 1e5))

@@ -22,9 +22,13 @@ def test_flat_plane_constant_mu(speed_kmh):
 
 
 def test_flat_plane_exponential_law_every_speed():
+    """A steep law (mu falls 0.05 per m/s at 10 km/h) needs a longer settling slide than a constant mu: the
+    Rayleigh damping is light at the slider's bounce frequency (measured at 10 km/h: +1.1 % with a 10 mm slide,
+    +0.3 % with 30 mm)."""
     law = ExponentialDecay(mu_s=0.8, mu_k=0.3, alpha=0.15)
+    cfg = FAST.replace(slide_length_mm=30.0, window_start_mm=10.0)
     for v in (10, 30, 50, 70):
-        r = simulate(FlatPlane(z0_m=1e-3), v, law, FAST)
+        r = simulate(FlatPlane(z0_m=1e-3), v, law, cfg)
         assert r.sn == pytest.approx(float(law.mu_kmh(v)), rel=0.01), v
 
 
@@ -77,7 +81,9 @@ def test_tilted_plane_geometry():
 
 
 def test_outputs_trace_and_vtu(tmp_path):
-    cfg = FAST.replace(vtu_frames=3)
+    # mass-proportional slide damping: with the default Rayleigh damping a flat plane carries a friction-induced
+    # limit cycle in which some bottom nodes lift for a moment (docs/solver.md, "Known limitations")
+    cfg = FAST.replace(vtu_frames=3, slide_damping_model="mass")
     calls = []
     r = simulate(
         FlatPlane(),
@@ -222,12 +228,15 @@ def test_contact_gap_and_penalty_length_options():
     assert norm.sn == pytest.approx(0.4 * np.sqrt(1 + s * s), rel=0.01)
     # same contact force, (1 + s^2) times softer along the normal: deeper vertical penetration
     assert norm.max_penetration_um == pytest.approx(vert.max_penetration_um * (1 + s * s), rel=0.05)
-    same = simulate(FlatPlane(), 20, law, FAST.replace(penalty_length_mm=FAST.element_mm))
-    base = simulate(FlatPlane(), 20, law, FAST)
+    # a tangential penalty softer than both normal ones, so that the normal penalty sets the step bound
+    cfg = FAST.replace(friction_stiffness_pa_per_m=1e10)
+    same = simulate(FlatPlane(), 20, law, cfg.replace(penalty_length_mm=FAST.element_mm))
+    base = simulate(FlatPlane(), 20, law, cfg)
     assert same.sn == pytest.approx(base.sn, rel=1e-12) and same.dt_s == pytest.approx(base.dt_s, rel=1e-12)
-    soft = simulate(FlatPlane(), 20, law, FAST.replace(penalty_length_mm=4 * FAST.element_mm))
-    # 4x softer: deeper (2.9x at the sliding start's peak, dynamic), a longer stable step, SN still mu
-    assert soft.max_penetration_um > 2.5 * base.max_penetration_um and soft.dt_s > base.dt_s
+    soft = simulate(FlatPlane(), 20, law, cfg.replace(penalty_length_mm=4 * FAST.element_mm))
+    # 4x softer: deeper (the largest penetration is a dynamic peak: measured 1.9x with the default Rayleigh
+    # damping, 2.9x with the mass-proportional slide damping), a longer stable step, SN still mu
+    assert soft.max_penetration_um > 1.5 * base.max_penetration_um and soft.dt_s > base.dt_s
     assert soft.sn == pytest.approx(0.4, rel=0.005)
     for bad in (dict(contact_gap="sideways"), dict(penalty_length_mm=0.0)):
         with pytest.raises(ConfigError, match=next(iter(bad))):

@@ -15,12 +15,13 @@ from skidsim.config import config_digest, file_digest, solver_config
 
 #: SolverConfig fields that do not change a simulation's result: left out of the FE cache key.
 _NOT_IN_CACHE_KEY = ("progress_every_s", "trace_every", "vtu_frames", "blas_threads")
-#: Model selectors of the solver: (field, its default, the fields only that model reads). A selector at its default
-#: is left out of the key together with the parameters of the models it does not use, so the key of a default
-#: configuration is the same as before those models existed (FE caches stay valid); any other choice enters it.
+#: Model selectors of the solver: (field, the value of the first releases, {model: the fields only that model
+#: reads}). The fields of the models not selected are left out of the key; a selector at the first releases' value
+#: is left out too, so the key of the stick limit with mass-proportional damping is the same as before these
+#: models existed (its FE caches stay valid); any other choice enters it.
 _OPTIONAL_MODELS = (
-    ("friction_model", "stick_limit", ("friction_stiffness_pa_per_m",)),
-    ("slide_damping_model", "mass", ("loss_factor", "loss_band_hz")),
+    ("friction_model", "stick_limit", {"stick_limit": (), "penalty": ("friction_stiffness_pa_per_m",)}),
+    ("slide_damping_model", "mass", {"mass": ("slide_damping_per_s",), "rayleigh": ("loss_factor", "loss_band_hz")}),
 )
 
 
@@ -29,10 +30,14 @@ def solver_cache_key(scfg) -> dict:
     from dataclasses import asdict
 
     key = {k: v for k, v in asdict(scfg).items() if k not in _NOT_IN_CACHE_KEY}
-    for selector, default, own_fields in _OPTIONAL_MODELS:
-        if key.get(selector) == default:
-            for k in (selector, *own_fields):
-                key.pop(k, None)
+    for selector, first_release, models in _OPTIONAL_MODELS:
+        chosen = key.get(selector)
+        for model, own_fields in models.items():
+            if model != chosen:
+                for k in own_fields:
+                    key.pop(k, None)
+        if chosen == first_release:
+            key.pop(selector, None)
     return key
 
 

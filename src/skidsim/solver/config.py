@@ -39,7 +39,7 @@ class SolverConfig:
     velocity); the slider slides
     ``slide_length_mm`` (the study's 114.3 mm). If the pavement strip is too short (slider length plus slide plus
     ``edge_margin_mm`` at each end), the slide is shortened to fit when ``clamp_slide`` (the result records the
-    distance actually slid), else a :class:`ConfigError` is raised. ``slide_damping_per_s`` (1/s) is
+    distance actually slid), else a :class:`ConfigError` is raised. ``slide_damping_per_s`` (1/s, used with ``slide_damping_model="mass"``) is
     mass-proportional damping of the velocity relative to the holder during sliding. Default 3e4 1/s: without it
     the undamped elastic slider with Coulomb friction is *unstable* (friction-induced mode-coupling vibration:
     on a flat plane with mu 0.4 the normal force oscillates at ~5 kHz with growing amplitude until the slider
@@ -75,25 +75,26 @@ class SolverConfig:
     Contact: penalty stiffness per bottom node ``penalty_scale * E * A_node / h_z`` (N/m; ``penalty_scale`` 1 is
     the axial stiffness of the first element layer under the node).
 
-    Friction model ``friction_model``: ``"stick_limit"`` (default) caps the friction force of a node at
-    ``m |v_t,trial| / dt`` (the force that stops its predicted tangential velocity within the step) and applies
-    ``mu(s) N`` above it; the cap depends on the nodal mass, so small nodes stick behind asperities and SN falls
-    under mesh refinement below 0.5 mm. ``"penalty"``: an elastic stick regime with tangential penalty stiffness
+    Friction model ``friction_model``: ``"penalty"`` (default): an elastic stick regime with tangential penalty stiffness
     ``friction_stiffness_pa_per_m`` (Pa/m, per unit contact area, times the node's tributary area) and a return
     mapping onto ``|f_t| <= mu(s) N`` (:mod:`skidsim.solver.contact_friction`); the traction law does not depend
     on the element size. Default 5e10 Pa/m = E / 2 mm: an elastic slip of ~24 um at 1.2 MPa of shear traction, no
     stiffer than the normal penalty ``E / h_z`` of any mesh up to 2 mm, so it does not shorten the time step there.
-    The stable step includes ``k_t / m`` of every bottom node.
+    The stable step includes ``k_t / m`` of every bottom node. ``"stick_limit"`` (the model of the first releases,
+    kept for comparison) caps the friction force of a node at ``m |v_t,trial| / dt`` (the force that stops its
+    predicted tangential velocity within the step) and applies ``mu(s) N`` above it; the cap depends on the nodal
+    mass, so small nodes stick behind asperities and SN falls under mesh refinement below 0.5 mm (docs/solver.md).
 
-    Slide damping ``slide_damping_model``: ``"mass"`` (default) is the ``slide_damping_per_s`` dashpots above.
-    ``"rayleigh"``: ``alpha M + beta K`` with loss factor ``loss_factor`` (tan delta) at both ends of
+    Slide damping ``slide_damping_model``: ``"rayleigh"`` (default): ``alpha M + beta K`` with loss factor ``loss_factor`` (tan delta) at both ends of
     ``loss_band_hz`` (Hz; default 0.2 at 1 kHz and 100 kHz: the loss factor of a filled tread rubber at room
     temperature in the texture-excited band, rising towards the glass transition above it; docs/solver.md). In
     between the loss factor dips to 0.04 (at 10 kHz), above 100 kHz it rises with frequency (1.0 at 500 kHz), which
     damps the node-scale contact vibrations of fine meshes. The mass part acts on the velocity relative to the
     holder frame, the stiffness part on the deformation rate (``K`` of the long-term modulus); it replaces
     ``slide_damping_per_s``. The stable step shrinks by ``sqrt(1 + xi^2) - xi`` (``xi`` the damping ratio at the
-    highest frequency): 0.87 on the campaign preset, 0.66 at 0.5 mm, 0.45 at 0.25 mm.
+    highest frequency): 0.87 on the campaign preset, 0.66 at 0.5 mm, 0.45 at 0.25 mm. ``"mass"`` (the model of
+    the first releases) is the ``slide_damping_per_s`` dashpots above; with it the bottom nodes slip 1-3 m/s faster
+    than the holder (docs/calibration.md).
 
     ``blas_threads``: BLAS threads inside :func:`simulate` (via threadpoolctl when installed; ``None`` leaves the
     setting alone). 1 is fastest for the small matrix products here and essential on a busy machine (measured:
@@ -131,9 +132,9 @@ class SolverConfig:
     penalty_scale: float = 1.0
     contact_gap: str = "vertical"
     penalty_length_mm: float | None = None
-    friction_model: str = "stick_limit"
+    friction_model: str = "penalty"
     friction_stiffness_pa_per_m: float = 5.0e10
-    slide_damping_model: str = "mass"
+    slide_damping_model: str = "rayleigh"
     loss_factor: float = 0.2
     loss_band_hz: tuple[float, float] = (1.0e3, 1.0e5)
     trace_every: int = 1
