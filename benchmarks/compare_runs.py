@@ -33,6 +33,31 @@ def laws(results: Path, method: str) -> dict[str, ExponentialDecay]:
     return out
 
 
+#: mu_k below this: the slow branch of docs/regression.md (mu_k = 0 with a slow decay); above: the fast branch.
+SLOW_BRANCH_MU_K = 0.05
+
+
+def print_parameter_moves(method: str, sites: list[str], cheap: dict, reference: dict) -> None:
+    """Per parameter of the law (mu_s, mu_k dimensionless; alpha s/m): each run's median and the median and
+    largest change per site (cheap - reference), and how many sites lie on each branch."""
+    for name in ("mu_s", "mu_k", "alpha"):
+        a = np.array([getattr(cheap[s], name) for s in sites])
+        b = np.array([getattr(reference[s], name) for s in sites])
+        d = a - b
+        print(
+            f"  {method} {name}: median {np.median(a):.4f} vs {np.median(b):.4f}; change per site median "
+            f"{np.median(d):+.4f}, median |change| {np.median(np.abs(d)):.4f}, largest {d[np.argmax(np.abs(d))]:+.4f}"
+        )
+    for label, laws_ in (("cheap", cheap), ("reference", reference)):
+        slow = sum(laws_[s].mu_k < SLOW_BRANCH_MU_K for s in sites)
+        print(f"  {method} {label}: {slow} of {len(sites)} sites on the slow branch (mu_k < {SLOW_BRANCH_MU_K})")
+    d = np.array([cheap[s].mu_kmh(SPEEDS_KMH) - reference[s].mu_kmh(SPEEDS_KMH) for s in sites])
+    print(
+        f"  {method} mu(v) change per speed (km/h: mean): "
+        + ", ".join(f"{v:.0f}: {x:+.4f}" for v, x in zip(SPEEDS_KMH, d.mean(axis=0)) if v % 10 == 0)
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("cheap", type=Path)
@@ -61,6 +86,7 @@ def main() -> None:
             f"{np.sqrt(np.mean(diff**2)):.4f}, mean difference {diff.mean():+.4f}, worst site "
             f"{common[int(np.argmax(per_site))]} {per_site.max():.4f}"
         )
+        print_parameter_moves(method, common, lc, lr)
 
     for name, res in (("cheap", c), ("reference", r)):
         f = res / "calibration" / "fit_statistics.csv"
@@ -81,6 +107,17 @@ def main() -> None:
                     )
             if "steps_ratio" in tot:
                 print(f"{name}: steps ratio ours/study {tot['steps_ratio']:.3f}")
+            for m in ("study", "ours"):
+                if f"{m}_converged" in tot:
+                    print(f"{name}: {m} converged {tot[f'{m}_converged']}")
+        f = res / "regression" / "prediction_skill.csv"
+        if f.exists():
+            sk = pd.read_csv(f)
+            for _, row in sk.iterrows():
+                if isinstance(row["role"], str) and row["role"]:
+                    print(
+                        f"{name}: skill {row['model']} ({row['role']}): CV R2 {row['r2']:.3f}, RMSE {row['rmse']:.4f}"
+                    )
         f = res / "regression" / "cv_ranking.csv"
         if f.exists():
             rk = pd.read_csv(f)

@@ -27,11 +27,13 @@ Modules, each with the conventions that change its numbers (also in ``docs/regre
 * :mod:`.validation`: the leave-one-section-out CV and its scores (:func:`cross_validate_models`);
 * :mod:`.selection`: the best model (:func:`rank_models`);
 * :mod:`.skill`: the prediction-skill table (:func:`prediction_skill`);
+* :mod:`.capture`: what a texture model predicts of a hidden effect at unseen sections (:func:`effect_capture`);
 * :mod:`.options`: :class:`RegressionOptions`, the config's ``regression:`` section;
 * :mod:`.analysis`: the workflow's whole stage (:func:`run_analysis`, :func:`write_analysis`).
 """
 
 from .analysis import RegressionAnalysis, run_analysis, write_analysis
+from .capture import effect_capture, section_cv_predictions
 from .design import (
     BANDS,
     PARAMETERS,
@@ -98,6 +100,8 @@ from .targets import (
 from .validation import cross_validate_models, cross_validated_predictions, score_predictions
 
 __all__ = [
+    "effect_capture",
+    "section_cv_predictions",
     "RegressionAnalysis",
     "run_analysis",
     "write_analysis",

@@ -35,21 +35,20 @@ class SolverConfig:
     (fraction) of the load at two checks ``preload_check_s`` (s) apart, at the latest after ``preload_time_s``
     (s; the result records the contact force actually reached).
 
-    Sliding: the top face (rigid holder) moves in x at the test speed (y velocity 0, one common vertical
-    velocity); the slider slides
-    ``slide_length_mm`` (the study's 114.3 mm). If the pavement strip is too short (slider length plus slide plus
-    ``edge_margin_mm`` at each end), the slide is shortened to fit when ``clamp_slide`` (the result records the
-    distance actually slid), else a :class:`ConfigError` is raised. ``slide_damping_per_s`` (1/s, used with ``slide_damping_model="mass"``) is
-    mass-proportional damping of the velocity relative to the holder during sliding. Default 3e4 1/s: without it
-    the undamped elastic slider with Coulomb friction is *unstable* (friction-induced mode-coupling vibration:
-    on a flat plane with mu 0.4 the normal force oscillates at ~5 kHz with growing amplitude until the slider
-    bounces and SN drops to 0.31); 1e4 1/s is not enough, 3e4 1/s removes it (SN = mu to 1e-5). It acts like
-    a rubber loss (damping ratio c/(2 omega): 0.5 at 5 kHz, 0.05 at 50 kHz); set 0 to study the undamped model.
-    Its dissipation is reported as the ``damping`` energy. These dashpots connect the nodes to the *holder*
-    (velocity (v, 0, v_z,holder)), so they do not resist the vertical motion that follows the texture (dashpots
-    to the ground did, and carried up to 1.4 N of the 11.8 N load over a 20 mm window). The holder's own
-    vertical motion has a suspension dashpot to the ground, ``holder_damping_per_s`` (1/s) times the slider
-    mass (default 5e3 1/s, 11.5 N s/m): without it the bounce of the slider on its contacts, excited at the
+    Sliding: the top face (rigid holder) moves in x at the test speed (y velocity 0, one common vertical velocity);
+    the slider slides ``slide_length_mm`` (the study's 114.3 mm). If the pavement strip is too short (slider length
+    plus slide plus ``edge_margin_mm`` at each end), the slide is shortened to fit when ``clamp_slide`` (the result
+    records the distance actually slid), else a :class:`ConfigError` is raised. ``slide_damping_per_s`` (1/s, read
+    with ``slide_damping_model="mass"``) is mass-proportional damping of the velocity relative to the holder during
+    sliding. Default 3e4 1/s: without it the undamped elastic slider with Coulomb friction is *unstable*
+    (friction-induced mode-coupling vibration: on a flat plane with mu 0.4 the normal force oscillates at ~5 kHz
+    with growing amplitude until the slider bounces and SN drops to 0.31); 1e4 1/s is not enough, 3e4 1/s removes it
+    (SN = mu to 1e-5). It acts like a rubber loss (damping ratio c/(2 omega): 0.5 at 5 kHz, 0.05 at 50 kHz); set 0
+    to study the undamped model. Its dissipation is reported as the ``damping`` energy. These dashpots connect the
+    nodes to the *holder* (velocity (v, 0, v_z,holder)), so they do not resist the vertical motion that follows the
+    texture (dashpots to the ground did, and carried up to 1.4 N of the 11.8 N load over a 20 mm window). The
+    holder's own vertical motion has a suspension dashpot to the ground, ``holder_damping_per_s`` (1/s) times the
+    slider mass (default 5e3 1/s, 11.5 N s/m): without it the bounce of the slider on its contacts, excited at the
     start and by the texture, is undamped and short windows do not average the normal force to the load.
 
     Steady window: SN is averaged over holder displacements from ``window_start_mm`` (after the start of
@@ -75,26 +74,27 @@ class SolverConfig:
     Contact: penalty stiffness per bottom node ``penalty_scale * E * A_node / h_z`` (N/m; ``penalty_scale`` 1 is
     the axial stiffness of the first element layer under the node).
 
-    Friction model ``friction_model``: ``"penalty"`` (default): an elastic stick regime with tangential penalty stiffness
-    ``friction_stiffness_pa_per_m`` (Pa/m, per unit contact area, times the node's tributary area) and a return
-    mapping onto ``|f_t| <= mu(s) N`` (:mod:`skidsim.solver.contact_friction`); the traction law does not depend
-    on the element size. Default 5e10 Pa/m = E / 2 mm: an elastic slip of ~24 um at 1.2 MPa of shear traction, no
-    stiffer than the normal penalty ``E / h_z`` of any mesh up to 2 mm, so it does not shorten the time step there.
-    The stable step includes ``k_t / m`` of every bottom node. ``"stick_limit"`` (the model of the first releases,
-    kept for comparison) caps the friction force of a node at ``m |v_t,trial| / dt`` (the force that stops its
-    predicted tangential velocity within the step) and applies ``mu(s) N`` above it; the cap depends on the nodal
-    mass, so small nodes stick behind asperities and SN falls under mesh refinement below 0.5 mm (docs/solver.md).
+    Friction model ``friction_model``: ``"penalty"`` (default): an elastic stick regime with tangential penalty
+    stiffness ``friction_stiffness_pa_per_m`` (Pa/m, per unit contact area, times the node's tributary area) and a
+    return mapping onto ``|f_t| <= mu(s) N`` (:mod:`skidsim.solver.contact_friction`); the traction law does not
+    depend on the element size. Default 5e10 Pa/m = E / 2 mm: an elastic slip of ~24 um at 1.2 MPa of shear
+    traction, no stiffer than the normal penalty ``E / h_z`` of any mesh up to 2 mm, so it does not shorten the time
+    step there. The stable step includes ``k_t / m`` of every bottom node. ``"stick_limit"`` (the model of the first
+    releases, kept for comparison) caps the friction force of a node at ``m |v_t,trial| / dt`` (the force that stops
+    its predicted tangential velocity within the step) and applies ``mu(s) N`` above it; the cap depends on the
+    nodal mass, so small nodes stick behind asperities and SN falls under mesh refinement below 0.5 mm
+    (docs/solver.md).
 
-    Slide damping ``slide_damping_model``: ``"rayleigh"`` (default): ``alpha M + beta K`` with loss factor ``loss_factor`` (tan delta) at both ends of
-    ``loss_band_hz`` (Hz; default 0.2 at 1 kHz and 100 kHz: the loss factor of a filled tread rubber at room
-    temperature in the texture-excited band, rising towards the glass transition above it; docs/solver.md). In
-    between the loss factor dips to 0.04 (at 10 kHz), above 100 kHz it rises with frequency (1.0 at 500 kHz), which
-    damps the node-scale contact vibrations of fine meshes. The mass part acts on the velocity relative to the
-    holder frame, the stiffness part on the deformation rate (``K`` of the long-term modulus); it replaces
-    ``slide_damping_per_s``. The stable step shrinks by ``sqrt(1 + xi^2) - xi`` (``xi`` the damping ratio at the
-    highest frequency): 0.87 on the campaign preset, 0.66 at 0.5 mm, 0.45 at 0.25 mm. ``"mass"`` (the model of
-    the first releases) is the ``slide_damping_per_s`` dashpots above; with it the bottom nodes slip 1-3 m/s faster
-    than the holder (docs/calibration.md).
+    Slide damping ``slide_damping_model``: ``"rayleigh"`` (default): ``alpha M + beta K`` with loss factor
+    ``loss_factor`` (tan delta) at both ends of ``loss_band_hz`` (Hz; default 0.2 at 1 kHz and 100 kHz: the loss
+    factor of a filled tread rubber at room temperature in the texture-excited band, rising towards the glass
+    transition above it; docs/solver.md). In between the loss factor dips to 0.04 (at 10 kHz), above 100 kHz it
+    rises with frequency (1.0 at 500 kHz), which damps the node-scale contact vibrations of fine meshes. The mass
+    part acts on the velocity relative to the holder frame, the stiffness part on the deformation rate (``K`` of the
+    long-term modulus); it replaces ``slide_damping_per_s``. The stable step shrinks by ``sqrt(1 + xi^2) - xi``
+    (``xi`` the damping ratio at the highest frequency): 0.87 on the campaign preset, 0.66 at 0.5 mm, 0.45 at 0.25
+    mm. ``"mass"`` (the model of the first releases) is the ``slide_damping_per_s`` dashpots above; with it the
+    bottom nodes slip 1-3 m/s faster than the holder (docs/calibration.md).
 
     ``blas_threads``: BLAS threads inside :func:`simulate` (via threadpoolctl when installed; ``None`` leaves the
     setting alone). 1 is fastest for the small matrix products here and essential on a busy machine (measured:

@@ -1,0 +1,150 @@
+"""Issue 25, item 5: does the texture model predict a hidden texture-and-speed effect at unseen sections?
+
+    .venv/bin/python benchmarks/hidden_effect_capture.py WORKDIR [--generators chips spectral]
+        [--effects squeeze drainage] [--kappa 0.3] [--sites 36] [--shape 300 600] [--spacing-mm 0.2] [--cores 2]
+
+For each generator of :mod:`skidsim.generators` the campaign is written once without a hidden effect and once per
+effect (``friction.hidden_effect``, strength ``--kappa``), all from the same seed: the scans and the trace noise
+are the same files (checked byte by byte), only the friction curves differ. The workflow (``config/config.yaml``
++ ``config/quick.yaml``) computes the texture table of the campaign without the effect and the measured DFT
+(``results/ingest/dft_points.parquet``) of every campaign. Then :func:`skidsim.regression.effect_capture` with the
+workflow's texture model on the independent generators, ``physics2`` (OLS of the DFT at each speed on MPD and
+micro Sq, form by inner CV), cross-validated by section: the share of the effect (DFT with minus DFT without, at
+20-70 km/h) that the held-out predictions carry, the slope of the predicted on the true effect, the effect's size
+per speed, the same for the effect's differences between sites (the part that rides on texture; the campaign-wide
+mean per speed is predicted by any intercept), and the model's section-grouped CV R^2 of the DFT on both campaigns.
+
+Prints one markdown table and writes ``WORKDIR/capture.csv`` and ``WORKDIR/capture.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from skidsim.atomic import atomic_path, write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+SPEEDS_KMH = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
+
+
+def generate(gen: str, campaign: Path, effect: str | None, a) -> None:
+    from skidsim.generators import write_campaign
+
+    if (campaign / "sites.csv").exists():
+        return
+    over = {"n_sites": a.sites, "shape": list(a.shape), "spacing_mm": a.spacing_mm, "seed": a.seed}
+    if effect is not None:
+        over["friction"] = {"hidden_effect": effect, "hidden_kappa": a.kappa}
+    write_campaign(campaign, gen, over)
+
+
+def digest_scans(campaign: Path) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted((campaign / "scans").glob("*"))}
+
+
+def snakemake(campaign: Path, rundir: Path, targets: list[str], cores: int) -> None:
+    rundir.mkdir(parents=True, exist_ok=True)
+    cmd = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        "-s",
+        str(ROOT / "Snakefile"),
+        "--directory",
+        str(rundir),
+        "--configfile",
+        str(ROOT / "config" / "config.yaml"),
+        str(ROOT / "config" / "quick.yaml"),
+        "--config",
+        f"campaign={campaign}",
+        "--cores",
+        str(cores),
+        "--",
+        *targets,
+    ]
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
+    with open(rundir / "snakemake.log", "w") as log:
+        subprocess.run(cmd, check=True, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=rundir)
+
+
+def tables(texture: Path, dft: Path) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
+    """Texture table X (index site), DFT table D (dft@<v> columns, friction) and the sections."""
+    from skidsim.regression.targets import dft_targets
+
+    wide = pd.read_parquet(texture)
+    wide = wide.set_index(wide["site"].astype(str))
+    measured = pd.read_parquet(dft)[["site", "speed_kmh", "mu"]]
+    D = dft_targets(None, measured_dft=measured, speeds_kmh=SPEEDS_KMH, sites=list(wide.index))
+    return wide, D, wide["section"].astype(str).to_numpy()
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("workdir", type=Path)
+    ap.add_argument("--generators", nargs="+", default=["chips", "spectral"])
+    ap.add_argument("--effects", nargs="+", default=["squeeze", "drainage"])
+    ap.add_argument("--kappa", type=float, default=0.3)
+    ap.add_argument("--sites", type=int, default=36)
+    ap.add_argument("--shape", type=int, nargs=2, default=[300, 600])
+    ap.add_argument("--spacing-mm", type=float, default=0.2)
+    ap.add_argument("--seed", type=int, default=20261125)
+    ap.add_argument("--cores", type=int, default=2)
+    a = ap.parse_args(argv)
+    from skidsim.regression import effect_capture
+
+    wd = a.workdir.resolve()
+    rows = []
+    for gen in a.generators:
+        base = wd / gen / "none" / "campaign"
+        generate(gen, base, None, a)
+        snakemake(
+            base,
+            wd / gen / "none" / "run",
+            ["results/texture/campaign.parquet", "results/ingest/dft_points.parquet"],
+            a.cores,
+        )
+        res0 = wd / gen / "none" / "run" / "results"
+        X, D0, groups = tables(res0 / "texture" / "campaign.parquet", res0 / "ingest" / "dft_points.parquet")
+        scans0 = digest_scans(base)
+        for eff in a.effects:
+            camp = wd / gen / eff / "campaign"
+            generate(gen, camp, eff, a)
+            if digest_scans(camp) != scans0:
+                raise RuntimeError(f"{camp}: the scans differ from {base}'s; the effect must change friction only")
+            snakemake(camp, wd / gen / eff / "run", ["results/ingest/dft_points.parquet"], a.cores)
+            _, D1, _ = tables(
+                res0 / "texture" / "campaign.parquet",
+                wd / gen / eff / "run" / "results" / "ingest" / "dft_points.parquet",
+            )
+            r = effect_capture(X, D0, D1, groups)
+            rows.append({"generator": gen, "effect": eff, "kappa": a.kappa, **r})
+    t = pd.DataFrame(rows)
+    print(
+        "| generator | effect (kappa) | effect at 40 / 60 / 70 km/h (mean, mu) | effect rms | captured share "
+        "(slope) | between sites: rms, captured share (slope) | CV R^2 without / with |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        e = r["effect_by_speed"]
+        print(
+            f"| {r['generator']} | {r['effect']} ({r['kappa']:g}) | {e['dft@40']:+.3f} / {e['dft@60']:+.3f} / "
+            f"{e['dft@70']:+.3f} | {r['effect_rms']:.3f} | {r['captured_share']:.2f} ({r['slope']:.2f}) | "
+            f"{r['between_site_rms']:.4f}, {r['captured_share_between_sites']:.2f} ({r['slope_between_sites']:.2f}) | "
+            f"{r['r2_without']:.3f} / {r['r2_with']:.3f} |"
+        )
+    with atomic_path(wd / "capture.csv") as tmp:
+        t.drop(columns=["effect_by_speed"]).to_csv(tmp, index=False)
+    write_json(wd / "capture.json", rows)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
