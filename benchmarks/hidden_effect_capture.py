@@ -21,10 +21,8 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import os
-import subprocess
-import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -51,28 +49,10 @@ def digest_scans(campaign: Path) -> dict[str, str]:
 
 
 def snakemake(campaign: Path, rundir: Path, targets: list[str], cores: int) -> None:
-    rundir.mkdir(parents=True, exist_ok=True)
-    cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
-        "-s",
-        str(ROOT / "Snakefile"),
-        "--directory",
-        str(rundir),
-        "--configfile",
-        str(ROOT / "config" / "config.yaml"),
-        str(ROOT / "config" / "quick.yaml"),
-        "--config",
-        f"campaign={campaign}",
-        "--cores",
-        str(cores),
-        "--",
-        *targets,
-    ]
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
-    with open(rundir / "snakemake.log", "w") as log:
-        subprocess.run(cmd, check=True, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=rundir)
+    """The workflow with ``config/config.yaml`` + ``config/quick.yaml`` (independent_campaigns.workflow)."""
+    from independent_campaigns import workflow
+
+    workflow(campaign, rundir, SimpleNamespace(config=[ROOT / "config" / "quick.yaml"], cores=cores), targets)
 
 
 def tables(texture: Path, dft: Path) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:

@@ -239,7 +239,9 @@ def generate(gen: str, campaign: Path, a) -> None:
     run(cmd, campaign.parent / "synth.log")
 
 
-def workflow(campaign: Path, rundir: Path, a) -> float:
+def workflow(campaign: Path, rundir: Path, a, targets=None) -> float:
+    """``snakemake`` on ``campaign`` in ``rundir`` (``--directory``) with ``a.config`` on top of the default
+    config, ``a.cores`` cores, up to ``targets`` (default :data:`TARGETS`). Returns the wall time in s."""
     rundir.mkdir(parents=True, exist_ok=True)
     cmd = [
         sys.executable,
@@ -261,7 +263,7 @@ def workflow(campaign: Path, rundir: Path, a) -> float:
         "params",
         "input",
         "--",
-        *TARGETS,
+        *(TARGETS if targets is None else targets),
     ]
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     t0 = time.time()

@@ -231,7 +231,9 @@ class SolverConfig:
         saving comes from the element size alone.
         Measured on RandomTexture(seed 0) with mu_s 0.4, mu_k 0.35, alpha 0.6 s/m: SN +2.2 / +3.1 / +4.7 % against
         the reference preset at 20 / 40 / 60 km/h (a consistent upward bias), 3.4 s of one core at 20 km/h
-        (11,061 steps; 1.7 s / 1.2 s at 40 / 60 km/h with 5,855 / 4,120 steps).
+        (11,061 steps; 1.7 s / 1.2 s at 40 / 60 km/h with 5,855 / 4,120 steps); these figures are of the stick
+        limit of the first releases. With the default penalty friction and Rayleigh damping, on site E1-1 of the
+        default campaign: +1.2 / +1.6 / +2.6 % against 0.5 mm (measured 2026-11-27, docs/solver.md "Presets").
 
         Contact on the normal gap (``contact_gap="normal"``): the penalty's normal stiffness is then ``k`` on any
         slope, so the steepest flank no longer shortens the time step (with the vertical gap it is
