@@ -4,7 +4,9 @@
         [--effects squeeze drainage] [--kappa 0.3] [--sites 36] [--shape 300 600] [--spacing-mm 0.2] [--cores 2]
 
 For each generator of :mod:`skidsim.generators` the campaign is written once without a hidden effect and once per
-effect (``friction.hidden_effect``, strength ``--kappa``), all from the same seed: the scans and the trace noise
+effect (``friction.hidden_effect``, strength ``--kappa``), all from the same seed (``default``: the embedded
+generator :mod:`skidsim.synthetic`, its truth's drainage effect off, or on with size ``--kappa`` in the IFI form
+for ``drainage`` and the squeeze form for ``squeeze``): the scans and the trace noise
 are the same files (checked byte by byte), only the friction curves differ. The workflow (``config/config.yaml``
 + ``config/quick.yaml``) computes the texture table of the campaign without the effect and the measured DFT
 (``results/ingest/dft_points.parquet``) of every campaign. Then :func:`skidsim.regression.effect_capture` with the
@@ -33,10 +35,40 @@ ROOT = Path(__file__).resolve().parents[1]
 SPEEDS_KMH = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
 
 
+def generate_default(campaign: Path, effect: str | None, a) -> None:
+    """The default generator (:mod:`skidsim.synthetic`): its truth's drainage effect on (``effect`` drainage or
+    squeeze, size ``--kappa``) or off; the truth's temperature effect stays on in both."""
+    from skidsim import synthetic
+
+    drainage = {"enabled": effect is not None}
+    if effect is not None:
+        drainage.update(size=a.kappa, form="ifi" if effect == "drainage" else "squeeze")
+    cfg = synthetic.resolve_config(
+        {
+            "seed": a.seed,
+            "shape": list(a.shape),
+            "spacing_mm": a.spacing_mm,
+            "truth": {"effects": {"drainage": drainage}},
+        }
+    )
+    design = synthetic.design_campaign(cfg).head(a.sites)
+    truth = campaign.parent / (campaign.name + "-truth")
+    for _, row in design.iterrows():
+        data = synthetic.generate_site(row, cfg)
+        site = row["site"]
+        synthetic.write_site(
+            data, campaign / "scans" / f"{site}.x3p", campaign / "dft" / f"{site}.csv", truth / f"{site}.json"
+        )
+    synthetic.write_sites_csv(design, campaign, campaign / "sites.csv")
+
+
 def generate(gen: str, campaign: Path, effect: str | None, a) -> None:
     from skidsim.generators import write_campaign
 
     if (campaign / "sites.csv").exists():
+        return
+    if gen == "default":
+        generate_default(campaign, effect, a)
         return
     over = {"n_sites": a.sites, "shape": list(a.shape), "spacing_mm": a.spacing_mm, "seed": a.seed}
     if effect is not None:
@@ -69,7 +101,7 @@ def tables(texture: Path, dft: Path) -> tuple[pd.DataFrame, pd.DataFrame, np.nda
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("workdir", type=Path)
-    ap.add_argument("--generators", nargs="+", default=["chips", "spectral"])
+    ap.add_argument("--generators", nargs="+", default=["chips", "spectral"], help="chips, spectral, default")
     ap.add_argument("--effects", nargs="+", default=["squeeze", "drainage"])
     ap.add_argument("--kappa", type=float, default=0.3)
     ap.add_argument("--sites", type=int, default=36)
