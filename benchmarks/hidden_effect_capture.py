@@ -89,13 +89,9 @@ def snakemake(campaign: Path, rundir: Path, targets: list[str], cores: int) -> N
 
 def tables(texture: Path, dft: Path) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
     """Texture table X (index site), DFT table D (dft@<v> columns, friction) and the sections."""
-    from skidsim.regression.targets import dft_targets
+    from skidsim.regression import capture_tables
 
-    wide = pd.read_parquet(texture)
-    wide = wide.set_index(wide["site"].astype(str))
-    measured = pd.read_parquet(dft)[["site", "speed_kmh", "mu"]]
-    D = dft_targets(None, measured_dft=measured, speeds_kmh=SPEEDS_KMH, sites=list(wide.index))
-    return wide, D, wide["section"].astype(str).to_numpy()
+    return capture_tables(pd.read_parquet(texture), pd.read_parquet(dft), SPEEDS_KMH)
 
 
 def main(argv=None) -> int:

@@ -102,6 +102,14 @@ def read_results(results: Path) -> dict:
     }
 
 
+def campaign_overrides(**friction) -> dict:
+    """The generator settings of these campaigns (``friction``: settings of its friction model on top)."""
+    over = {"n_sites": N_SITES, "n_sections": N_SECTIONS, "shape": list(SHAPE), "spacing_mm": SPACING_MM, "seed": SEED}
+    if friction:
+        over["friction"] = friction
+    return over
+
+
 @pytest.fixture(scope="module", params=GENERATORS)
 def run(request, tmp_path_factory):
     """One campaign of generator ``request.param`` through the workflow, then the regression again with only
@@ -110,11 +118,7 @@ def run(request, tmp_path_factory):
 
     gen = request.param
     wd = tmp_path_factory.mktemp(f"independent_{gen}")
-    write_campaign(
-        wd / "campaign",
-        gen,
-        {"n_sites": N_SITES, "n_sections": N_SECTIONS, "shape": list(SHAPE), "spacing_mm": SPACING_MM, "seed": SEED},
-    )
+    write_campaign(wd / "campaign", gen, campaign_overrides())
     cfg = wd / "test.yaml"
     write_text(cfg, CONFIG)
     snakemake(wd, cfg)
@@ -249,41 +253,20 @@ def hidden(run):
     """The same campaign (same seed: the same scans and trace noise) with the hidden squeeze effect on friction;
     the workflow's ingest gives its measured DFT; the texture table is the first run's."""
     from skidsim.generators import write_campaign
-    from skidsim.regression.targets import dft_targets
+    from skidsim.regression import capture_tables
 
     wd = run["workdir"] / "hidden"
-    write_campaign(
-        wd / "campaign",
-        run["generator"],
-        {
-            "n_sites": N_SITES,
-            "n_sections": N_SECTIONS,
-            "shape": list(SHAPE),
-            "spacing_mm": SPACING_MM,
-            "seed": SEED,
-            "friction": HIDDEN,
-        },
-    )
+    write_campaign(wd / "campaign", run["generator"], campaign_overrides(**HIDDEN))
     cfg = wd / "test.yaml"
     write_text(cfg, CONFIG)
     snakemake(wd, cfg, targets=("results/ingest/dft_points.parquet",))
     base = run["workdir"]
     wide = pd.read_parquet(base / "results" / "texture" / "campaign.parquet")
-    wide = wide.set_index(wide["site"].astype(str))
-
-    def dft(results):
-        m = pd.read_parquet(results / "ingest" / "dft_points.parquet")[["site", "speed_kmh", "mu"]]
-        return dft_targets(None, measured_dft=m, sites=list(wide.index))
-
+    X, without, groups = capture_tables(wide, pd.read_parquet(base / "results" / "ingest" / "dft_points.parquet"))
+    _, with_, _ = capture_tables(wide, pd.read_parquet(wd / "results" / "ingest" / "dft_points.parquet"))
     scans = {p.name: p.read_bytes() for p in sorted((base / "campaign" / "scans").glob("*"))}
     same = scans == {p.name: p.read_bytes() for p in sorted((wd / "campaign" / "scans").glob("*"))}
-    return {
-        "X": wide,
-        "without": dft(base / "results"),
-        "with": dft(wd / "results"),
-        "groups": wide["section"].astype(str).to_numpy(),
-        "same_scans": same,
-    }
+    return {"X": X, "without": without, "with": with_, "groups": groups, "same_scans": same}
 
 
 @pytest.mark.slow

@@ -77,3 +77,20 @@ def test_bad_input_names_what_is_expected():
         effect_capture(X, D, D.copy(), groups)
     with pytest.raises(InputError, match="two sections"):
         section_cv_predictions(X, D, np.zeros(len(D), int))
+
+
+def test_capture_tables_read_the_workflows_texture_and_dft_tables():
+    from skidsim.regression import capture_tables
+
+    wide = pd.DataFrame({"site": ["A-1", "A-2", "B-1"], "section": ["A", "A", "B"], "profile_MPD": [0.5, 0.7, 1.1]})
+    points = pd.DataFrame(
+        [(s, v, 0.5 - v / 1000 + i / 100) for i, s in enumerate(["B-1", "A-1", "A-2"]) for v in SPEEDS]
+        + [("A-1", 80.0, 0.2)],  # a speed not asked for is left out
+        columns=["site", "speed_kmh", "mu"],
+    )
+    X, D, groups = capture_tables(wide, points, SPEEDS)
+    assert list(X.index) == list(D.index) == ["A-1", "A-2", "B-1"] and list(groups) == ["A", "A", "B"]
+    assert list(D.columns) == ["dft@20", "dft@40", "dft@60"]
+    assert D.loc["B-1", "dft@40"] == pytest.approx(0.46) and D.loc["A-2", "dft@20"] == pytest.approx(0.50)
+    with pytest.raises(InputError, match="C-1"):  # a site of the texture table without a DFT value
+        capture_tables(pd.concat([wide, wide.iloc[[0]].assign(site="C-1")]), points, SPEEDS)

@@ -33,7 +33,7 @@ Modules, each with the conventions that change its numbers (also in ``docs/regre
 """
 
 from .analysis import RegressionAnalysis, run_analysis, write_analysis
-from .capture import effect_capture, section_cv_predictions
+from .capture import capture_tables, effect_capture, section_cv_predictions
 from .design import (
     BANDS,
     PARAMETERS,
@@ -100,6 +100,7 @@ from .targets import (
 from .validation import cross_validate_models, cross_validated_predictions, score_predictions
 
 __all__ = [
+    "capture_tables",
     "effect_capture",
     "section_cv_predictions",
     "RegressionAnalysis",

@@ -33,6 +33,20 @@ import pandas as pd
 from skidsim.errors import InputError
 
 from .physics import fit_physics_ols
+from .targets import DEFAULT_SPEEDS_KMH, dft_targets
+
+
+def capture_tables(
+    texture_wide: pd.DataFrame, dft_points: pd.DataFrame, speeds_kmh=DEFAULT_SPEEDS_KMH
+) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
+    """The inputs of :func:`effect_capture` from the workflow's tables: the texture table (``results/texture/
+    campaign.parquet``, indexed by site), the DFT table (sites x ``dft@<v>`` columns, friction, at ``speeds_kmh``
+    km/h, from ``results/ingest/dft_points.parquet``: site, speed_kmh, mu) and the section of each site."""
+    X = texture_wide.set_index(texture_wide["site"].astype(str))
+    D = dft_targets(
+        None, measured_dft=dft_points[["site", "speed_kmh", "mu"]], speeds_kmh=speeds_kmh, sites=list(X.index)
+    )
+    return X, D, X["section"].astype(str).to_numpy()
 
 
 def _physics2(X: pd.DataFrame, Y: pd.DataFrame, groups: np.ndarray):
