@@ -22,6 +22,7 @@ from skidsim.calibration import (
     JointOptions,
     StudyOptions,
     aitken_three_point,
+    alpha_window,
     calibrate_fast,
     calibrate_study,
     comparison_table,
@@ -506,6 +507,45 @@ def test_surrogate_prior_from_reference_sites_saves_the_pilot_and_a_batch():
         calibrate_fast(site, site.curve(law), JointOptions(model="ratio"), prior=prior)
     with pytest.raises(ValueError, match="same length"):
         calibrate_fast(site, site.curve(law), prior=dict(prior, b=[1.1, 1.1]))
+
+
+def _verified_alphas(res) -> np.ndarray:
+    h = res.history[res.history["stage"] == "verify"]
+    return h.groupby("iteration")["alpha"].first().to_numpy()
+
+
+def test_alpha_trust_region_window_and_where_it_binds():
+    """The window [a/f, a f + floor] within the bounds; where the data identify alpha it never binds (the result is
+    the unlimited one); on a fast-decaying law (alpha 0.9 s/m: flat over 20-60 km/h, so a flat law fits as well)
+    it keeps every verified alpha within the window of the previous one; with a cost limit nothing meets, it
+    stands aside."""
+    opt = JointOptions()
+    assert (opt.alpha_step_factor, opt.alpha_step_floor_s_per_m, opt.alpha_step_max_cost) == (2.0, 0.02, 0.005)
+    assert alpha_window(0.1, (0.0, 1.0), opt) == pytest.approx((0.05, 0.22))
+    assert alpha_window(0.0, (0.0, 1.0), opt) == pytest.approx((0.0, 0.02))
+    assert alpha_window(0.8, (0.0, 1.0), opt) == pytest.approx((0.4, 1.0))
+    assert alpha_window(0.1, (0.0, 1.0), JointOptions(alpha_step_factor=None)) is None
+
+    v = np.arange(5.0, 85.0)
+    meas = pd.DataFrame({"speed_kmh": v, "mu": 1.13 * TRUTH.mu(SlipSurrogate.slip_ms(v))})
+    limited = calibrate_fast(SlipSurrogate(), meas, JointOptions(tol=1e-6))
+    free = calibrate_fast(SlipSurrogate(), meas, JointOptions(tol=1e-6, alpha_step_factor=None))
+    assert limited.settings["alpha_steps_limited"] == 0 and limited.converged
+    assert limited.params == free.params and limited.n_fe_runs == free.n_fe_runs
+
+    def g(v, mu):
+        return (1.04 + 0.0015 * (v - 40.0)) * (1.0 + 0.4 * (mu - 0.45))
+
+    fast = ExponentialDecay(mu_s=0.7, mu_k=0.2, alpha=0.9)
+    meas = trace(fast, g)
+    res = calibrate_fast(Surrogate(g=g), meas, JointOptions(tol=1e-6))
+    a = _verified_alphas(res)
+    assert res.settings["alpha_steps_limited"] >= 1
+    assert np.all(a[1:] <= 2.0 * a[:-1] + 0.02 + 1e-12) and np.all(a[1:] >= a[:-1] / 2.0 - 1e-12)
+    unlimited = calibrate_fast(Surrogate(g=g), meas, JointOptions(tol=1e-6, alpha_step_factor=None))
+    assert np.any(_verified_alphas(unlimited)[1:] > 2.0 * _verified_alphas(unlimited)[:-1] + 0.02)  # it jumps
+    strict = calibrate_fast(Surrogate(g=g), meas, JointOptions(tol=1e-6, alpha_step_max_cost=1e-12))
+    assert strict.settings["alpha_steps_limited"] == 0 and strict.params == unlimited.params
 
 
 def test_prior_reference_sites_spread_over_the_table():

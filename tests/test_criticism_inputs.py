@@ -116,12 +116,19 @@ def test_read_workflow_inputs(tmp_path):
         df.to_parquet(paths[k])
     paths["cv_predictions"] = tmp_path / "cv.csv"
     pd.DataFrame(
-        {"site": ["a", "b"], "model": "m1", "mu_s": [0.8, 0.7], "mu_k": [0.3, 0.2], "alpha": [0.05, 0.04]}
+        {
+            "site": ["a", "b"],
+            "model": "m1",
+            "mu_s": [0.8, 0.7],
+            "mu_k": [0.3, 0.2],
+            "alpha": [0.05, 0.04],
+            "features": ["log(x)+y", "log(x)+y"],
+        }
     ).to_csv(paths["cv_predictions"], index=False)
     paths["best_model"] = tmp_path / "best.txt"
     paths["best_model"].write_text("m1\n")
     inp = read_workflow_inputs(paths, "ours", [20, 40, 60], [50])
-    assert inp.prediction_model == "m1"
+    assert inp.prediction_model == "m1" and inp.prediction_features == ("log(x)", "y")
     assert inp.measured["kind"].tolist() == ["calibration", "validation", "trace"]
     # the predicted law equals the calibrated one here, so the predictions reproduce the simulation
     assert np.allclose(inp.predicted.sort_values(["site", "speed_kmh"])["sn_pred"], val["sn_sim"], rtol=1e-12)

@@ -31,7 +31,7 @@ Conventions that change numbers (also in ``docs/calibration.md``):
 """
 
 from skidsim.calibration.cache import FECache, FEOutcome, Simulator, fe_simulator
-from skidsim.calibration.joint import calibrate_fast, prior_reference_sites, surrogate_prior
+from skidsim.calibration.joint import alpha_window, calibrate_fast, prior_reference_sites, surrogate_prior
 from skidsim.calibration.law_fit import aitken_three_point, box_ls2_many, fit_exponential_decay, invert_law_kmh
 from skidsim.calibration.measured import measured_arrays, measured_at, measured_dict
 from skidsim.calibration.options import (
@@ -78,6 +78,7 @@ __all__ = [
     "fe_simulator",
     "calibrate_fast",
     "prior_reference_sites",
+    "alpha_window",
     "surrogate_prior",
     "aitken_three_point",
     "box_ls2_many",

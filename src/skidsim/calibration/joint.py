@@ -90,6 +90,8 @@ def calibrate_fast(
         "a": sur.a.tolist(),
         "secant_min_dmu": opt.secant_min_dmu,
         "window_kmh": opt.window_kmh,
+        "alpha_step_factor": opt.alpha_step_factor,
+        "alpha_steps_limited": int(sur.limited),
         "prior": None
         if prior is None
         else {k: [float(x) for x in prior[k]] for k in ("speeds_kmh", "b", "slip_offsets_kmh")},
@@ -151,6 +153,7 @@ class _Surrogate:
         self.b = np.full(spd.size, float(opt.g_prior))
         self.d = np.zeros(spd.size)  # effective slip-speed offsets, km/h (model="slip")
         self.last: list[tuple[float, float] | None] = [None] * spd.size
+        self.limited = 0  # refits the alpha trust region moved (alpha_step_factor)
 
     def start_from_prior(self, prior: Mapping[str, Sequence[float]]) -> None:
         """b and d from the campaign prior (:func:`surrogate_prior`), interpolated to the calibration speeds."""
@@ -181,13 +184,13 @@ class _Surrogate:
         self.b = np.interp(self.spd, pv, pb)
         self.d = np.interp(self.spd, pv, pd_)
 
-    def fit(self, v_fit: np.ndarray, y_fit: np.ndarray, bounds: Mapping) -> ExponentialDecay:
-        """The bounded least-squares law of the data under the surrogate (no FE)."""
+    def fit(self, v_fit: np.ndarray, y_fit: np.ndarray, bounds: Mapping) -> tuple[ExponentialDecay, float]:
+        """The bounded least-squares law of the data under the surrogate (no FE) and its RMSE (mu) on the points."""
         a_fit = np.interp(v_fit, self.spd, self.a)
         b_fit = np.interp(v_fit, self.spd, self.b)
         v_eff_fit = v_fit + np.interp(v_fit, self.spd, self.d)
-        law, _ = fit_exponential_decay(v_eff_fit, y_fit, a=a_fit, b=b_fit, bounds=bounds)
-        return law
+        law, sse = fit_exponential_decay(v_eff_fit, y_fit, a=a_fit, b=b_fit, bounds=bounds)
+        return law, float(np.sqrt(sse / max(len(y_fit), 1)))
 
     def predict(self, law: ExponentialDecay) -> tuple[np.ndarray, np.ndarray]:
         """(mu at the effective speeds, surrogate SN) at the calibration speeds."""
@@ -281,7 +284,14 @@ def _iterate(
     it = 0
     while True:
         it += 1
-        law = sur.fit(v_fit, y_fit, bnd)
+        law, rmse_fit = sur.fit(v_fit, y_fit, bnd)
+        if prev_law is not None:
+            window = alpha_window(prev_law.alpha, bnd["alpha"], opt)
+            if window is not None and not (window[0] <= law.alpha <= window[1]):
+                near, rmse_near = sur.fit(v_fit, y_fit, {**bnd, "alpha": window})
+                if rmse_near - rmse_fit <= opt.alpha_step_max_cost:
+                    law = near
+                    sur.limited += 1
         if prev_law is not None and all(abs(getattr(law, p) - getattr(prev_law, p)) < 1e-12 for p in PARAMS):
             message = (
                 f"fast calibration stalled: the model update did not change the law after iteration "
@@ -317,6 +327,21 @@ def _iterate(
         return law, False, message
     best = min(verified, key=lambda t: t[1])[0]
     return best, False, message + f"; kept the verified law with the smallest RMSE vs measured ({best})"
+
+
+def alpha_window(alpha_prev: float, bound: Sequence[float], opt: JointOptions) -> tuple[float, float] | None:
+    """The trust region (s/m) of the next refit's alpha after a batch verified a law with ``alpha_prev``:
+    ``[alpha_prev / f, alpha_prev * f + floor]`` within the calibration ``bound`` (f = ``alpha_step_factor``,
+    floor = ``alpha_step_floor_s_per_m``); None without a limit. :func:`calibrate_fast` refits within it when the
+    free refit's alpha falls outside and the law within the window fits the data under the surrogate at most
+    ``alpha_step_max_cost`` (mu, RMSE) worse: the data then cannot tell the two laws apart, and the FE's response
+    was measured near the verified one."""
+    f = opt.alpha_step_factor
+    if f is None:
+        return None
+    lo = max(float(bound[0]), alpha_prev / f)
+    hi = min(float(bound[1]), alpha_prev * f + opt.alpha_step_floor_s_per_m)
+    return (lo, hi) if lo < hi else None
 
 
 def surrogate_prior(results: Sequence[CalibrationResult]) -> dict:

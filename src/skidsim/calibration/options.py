@@ -134,6 +134,15 @@ class JointOptions:
     pilot_speed_kmh: ``"fastest"`` (the highest calibration speed), a speed in km/h, or None (no pilot run).
     secant_min_dmu: ``model="ratio"``: smallest change of mu between two runs at a speed for the secant update.
     window_kmh: None or the half-width, km/h, of the local regression of the measured values (:func:`measured_at`).
+    alpha_step_factor: trust region of the refit between FE batches: after a batch, the next law's alpha (s/m)
+        stays within ``[alpha_prev / f, alpha_prev * f + alpha_step_floor_s_per_m]`` of the law just verified
+        when the free refit's alpha falls outside that window and the best law inside it fits the data (under
+        the surrogate) at most ``alpha_step_max_cost`` worse; None: no limit. It keeps the calibration on one
+        branch of the mu_k / alpha trade-off, where the FE's response to the law was measured, as long as the
+        data cannot tell the branches apart (docs/calibration.md, "Trust region").
+    alpha_step_floor_s_per_m: s/m added to the window's upper end, so that a flat law (alpha near 0) can move.
+    alpha_step_max_cost: mu; the largest increase of the fit's RMSE on the fitted points that the trust region
+        may cost (larger: the data want the far law, and the refit goes there).
     """
 
     tol: float = 0.01
@@ -147,6 +156,9 @@ class JointOptions:
     pilot_speed_kmh: float | str | None = "fastest"
     secant_min_dmu: float = 0.01
     window_kmh: float | None = None
+    alpha_step_factor: float | None = 2.0
+    alpha_step_floor_s_per_m: float = 0.02
+    alpha_step_max_cost: float = 0.005
 
     def __post_init__(self):
         where = "calibration.ours"
@@ -169,6 +181,13 @@ class JointOptions:
         _positive(f"{where}.secant_min_dmu", self.secant_min_dmu)
         if self.window_kmh is not None:
             _positive(f"{where}.window_kmh", self.window_kmh)
+        if self.alpha_step_factor is not None and not (
+            isinstance(self.alpha_step_factor, (int, float)) and self.alpha_step_factor > 1
+        ):
+            got = self.alpha_step_factor
+            raise ConfigError(f"{where}.alpha_step_factor: expected a number > 1 or null, got {got!r}")
+        _positive(f"{where}.alpha_step_floor_s_per_m", self.alpha_step_floor_s_per_m)
+        _positive(f"{where}.alpha_step_max_cost", self.alpha_step_max_cost)
 
     @classmethod
     def from_config(cls, section: Mapping | None) -> JointOptions:

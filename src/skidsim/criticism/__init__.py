@@ -24,12 +24,11 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from .adjustment import added_variable
+from .adjustment import added_variable, texture_model_scores
 from .causes import Cause, named_cause, order_by_refinement, refines
 from .covariates import (
     DEFAULT_EXCLUDE,
     CandidateRoles,
-    between_site_texture_scores,
     find_mpd_column,
     site_covariates,
     texture_clusters,
@@ -67,6 +66,7 @@ __all__ = [
     "find_mpd_column",
     "texture_clusters",
     "added_variable",
+    "texture_model_scores",
     "LEVELS",
     "DEFAULT_EXCLUDE",
 ]
@@ -98,14 +98,18 @@ def diagnose(
     roles = CandidateRoles() if roles is None else roles
     sites, texture, bin_kmh = inputs.sites, inputs.texture, options.speed_bin_kmh
     res = build_residuals(sites, inputs.measured, inputs.simulated, inputs.predicted)
-    pcs = between_site_texture_scores(res, sites, texture, bin_kmh, roles.exclude)  # one set of PCs for all
+    # one texture model (the prediction model's columns when they predict better, then PCs) for all steps
+    pcs, texture_model = texture_model_scores(
+        res, sites, texture, bin_kmh, roles.exclude, lead=inputs.prediction_features
+    )
+    texture_model = {"prediction_model": inputs.prediction_model, **texture_model}
     causes = screen_candidates(res, sites, texture, options, roles, texture_pc_scores=pcs)
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture, exclude=roles.exclude)
     if top is None:
         gain, preds = baseline_gain(res, options)
-        return DiagnosisResult(res, causes, top, gain, preds, cov, pd.DataFrame())
+        return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, pd.DataFrame())
     model = apply_extension(top, sites, texture, speed_bin_kmh=bin_kmh, exclude=roles.exclude)
     gain, preds = evaluate_extension(model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude)
     av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
-    return DiagnosisResult(res, causes, top, gain, preds, cov, av)
+    return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, av)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .covariates import DEFAULT_EXCLUDE, scores_for, site_covariates
+from ..errors import InputError
+from .covariates import DEFAULT_EXCLUDE, between_site_texture_scores, score_table, scores_for, site_covariates
 from .residuals import level_matrix
 
 
@@ -51,7 +52,12 @@ def _loso_sse(M: np.ndarray, X: np.ndarray, folds: np.ndarray, n_sec: int) -> fl
 
 
 def texture_adjustment(
-    M: np.ndarray, scores: np.ndarray, sections: np.ndarray, k_max: int | None = None, variance_share: float = 0.9
+    M: np.ndarray,
+    scores: np.ndarray,
+    sections: np.ndarray,
+    k_max: int | None = None,
+    variance_share: float = 0.9,
+    n_lead: int = 0,
 ) -> tuple[int, np.ndarray, int]:
     """Nuisance design of the texture-adjusted between-site tests: ``(k, N, k_cv)`` with ``N = [1, scores[:, :k]]``.
 
@@ -65,22 +71,115 @@ def texture_adjustment(
     stays valid (docs/model-criticism.md, section 2, "Texture-adjusted tests"). ``k_cv`` (a) alone is the best
     predictive texture model: the candidates' ``cv_gain`` and the texture-refit extensions use it (a predictive
     comparison is made against the best texture predictor, not an over-fitted one).
+
+    ``n_lead``: the first ``n_lead`` columns of ``scores`` are the prediction model's texture columns
+    (:func:`texture_model_scores`), always conditioned on (``k >= n_lead``, ``k_cv >= n_lead``), the PCs after
+    them; (b) then counts PCs only, on top of the lead columns.
     """
     n = M.shape[0]
     folds = np.unique(sections, return_inverse=True)[1]
     n_sec = int(folds.max()) + 1
     top = min(n_sec - 2, n // 3, scores.shape[1]) if k_max is None else min(int(k_max), scores.shape[1])
-    best_k, best = 0, np.inf
-    for k in range(max(top, 0) + 1):
+    top = max(top, n_lead)
+    best_k, best = n_lead, np.inf
+    for k in range(n_lead, top + 1):
         sse = _loso_sse(M, np.c_[np.ones(n), scores[:, :k]], folds, n_sec)
         if sse < best * (1 - 1e-12):
             best_k, best = k, sse
     k = best_k
-    var = scores.var(axis=0)
+    var = scores[:, n_lead:].var(axis=0)
     if len(var) and var.sum() > 0:
-        k_var = int(np.searchsorted(np.cumsum(var) / var.sum(), variance_share - 1e-12) + 1)
-        k = max(best_k, min(k_var, max(top, 0)))
+        k_var = n_lead + int(np.searchsorted(np.cumsum(var) / var.sum(), variance_share - 1e-12) + 1)
+        k = max(best_k, min(k_var, top))
     return k, np.c_[np.ones(n), scores[:, :k]], best_k
+
+
+def lead_design(cov: pd.DataFrame, terms) -> np.ndarray | None:
+    """Columns (n_sites, len(terms)) of a prediction model's texture terms, ``column`` or ``log(column)`` (natural
+    log), each standardised over the sites of ``cov``; None when a column is missing, has a NaN, is constant, or
+    is not positive under a log."""
+    cols = []
+    for t in terms:
+        is_log = t.startswith("log(") and t.endswith(")")
+        name = t[4:-1] if is_log else t
+        if name not in cov.columns:
+            return None
+        x = cov[name].to_numpy(float)
+        if not np.isfinite(x).all() or (is_log and (x <= 0).any()):
+            return None
+        x = np.log(x) if is_log else x
+        if x.std() == 0:
+            return None
+        cols.append((x - x.mean()) / x.std())
+    return np.column_stack(cols) if cols else None
+
+
+def _best_loso(M: np.ndarray, lead: np.ndarray, pcs: np.ndarray, folds: np.ndarray, n_sec: int, top: int):
+    """Smallest leave-one-section-out SSE of ``M`` on ``[1, lead, first j PCs]`` over j (``lead`` may have no
+    columns) with ``lead`` columns + j <= ``top``, and that j."""
+    n = M.shape[0]
+    best, best_j = np.inf, 0
+    for j in range(max(top - lead.shape[1], 0) + 1):
+        sse = _loso_sse(M, np.c_[np.ones(n), lead, pcs[:, :j]], folds, n_sec)
+        if sse < best * (1 - 1e-12):
+            best, best_j = sse, j
+    return best, best_j
+
+
+def texture_model_scores(
+    residuals: pd.DataFrame,
+    sites: pd.DataFrame,
+    texture_wide: pd.DataFrame | None,
+    speed_bin_kmh: float = 10.0,
+    exclude=DEFAULT_EXCLUDE,
+    lead=(),
+) -> tuple[pd.DataFrame | None, dict]:
+    """The texture model the between-site tests condition on, as the score table of
+    :func:`~skidsim.criticism.covariates.between_site_texture_scores` (columns ``_tpc1, _tpc2, ...``), and its
+    record (gain.json ``texture_model``).
+
+    ``lead``: the texture terms of the regression model whose held-out predictions the between-site residuals
+    use (``DiagnosisInputs.prediction_features``, e.g. ``("profile_MPD", "micro_Sq")`` for ``physics2@dft``).
+    Two texture models of the measured curves (site x speed bin, mu) are compared by leave-one-section-out SSE,
+    each with its best number j of leading PCs: ``[1, PCs 1..j]`` and ``[1, lead columns, PCs 1..j]``. When the
+    second predicts unseen sections better, the lead columns (standardised, logs where the term is a log) come
+    first in the table, ``table.attrs["n_lead"]`` says how many, and the tests always condition on them. No
+    candidate enters the choice, so the permutation tests stay valid. The record holds the columns used, the
+    number of PCs and the cross-validated R^2 of the measured curves (1 - SSE / sum of squares about the pooled
+    mean) of the mean per speed bin, the PC model and the lead model."""
+    table = between_site_texture_scores(residuals, sites, texture_wide, speed_bin_kmh, exclude)
+    record = {"lead": [], "lead_chosen": False, "cv_r2_pcs": None, "cv_r2_lead": None, "cv_r2_mean_per_bin": None}
+    if table is None:
+        return None, record
+    try:
+        ids, _, M = level_matrix(residuals, "between-site", speed_bin_kmh, value="measured")
+    except InputError:
+        return table, record
+    pos = {s: i for i, s in enumerate(ids)}
+    M = M[[pos[s] for s in table.index]]
+    cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
+    sec = sites.assign(site=sites["site"].astype(str)).set_index("site").loc[list(table.index), "section"]
+    folds = np.unique(sec.astype(str).to_numpy(), return_inverse=True)[1]
+    n_sec = int(folds.max()) + 1
+    n, pcs = len(table), table.to_numpy(float)
+    top = min(n_sec - 2, n // 3, pcs.shape[1])
+    ss = float(((M - M.mean()) ** 2).sum())
+    r2 = lambda sse: float(1 - sse / ss) if ss > 0 else None  # noqa: E731
+    sse_mean = _loso_sse(M, np.ones((n, 1)), folds, n_sec)
+    sse_pcs, j_pcs = _best_loso(M, np.zeros((n, 0)), pcs, folds, n_sec, top)
+    record.update(cv_r2_mean_per_bin=r2(sse_mean), cv_r2_pcs=r2(sse_pcs), pcs=int(j_pcs))
+    L = lead_design(cov.loc[list(table.index)], lead) if lead else None
+    if L is None or L.shape[1] > top:
+        return table, record
+    sse_lead, j_lead = _best_loso(M, L, pcs, folds, n_sec, top)
+    record.update(lead=list(lead), cv_r2_lead=r2(sse_lead), pcs_with_lead=int(j_lead))
+    if sse_lead >= sse_pcs:
+        return table, record
+    record["lead_chosen"] = True
+    out = score_table(np.c_[L, pcs], table.index)
+    out.attrs["n_lead"] = L.shape[1]
+    out.attrs["lead"] = list(lead)
+    return out, record
 
 
 def added_variable(

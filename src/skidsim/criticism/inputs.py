@@ -36,6 +36,7 @@ class DiagnosisInputs:
     predicted: pd.DataFrame | None = None
     texture: pd.DataFrame | None = None
     prediction_model: str | None = None
+    prediction_features: tuple[str, ...] = ()
 
 
 def measured_table(
@@ -90,6 +91,21 @@ def between_site_predictions(g: pd.DataFrame, cv_predictions: pd.DataFrame, mode
     return pd.concat(frames, ignore_index=True)
 
 
+def prediction_features(cv_predictions: pd.DataFrame, model: str) -> tuple[str, ...]:
+    """The texture columns ``model`` predicts from, from the ``features`` column of ``cv_predictions`` (one entry
+    per held-out site, e.g. ``"profile_MPD+micro_Sq"`` or ``"log(profile_MPD)+log(micro_Sq)"``): the terms of the
+    entry most held-out sites share (ties: the first in the table), or ``()`` when the model records none."""
+    if "features" not in cv_predictions.columns:
+        return ()
+    f = cv_predictions.loc[cv_predictions["model"] == model, "features"].dropna().astype(str).str.strip()
+    f = f[f != ""]
+    if f.empty:
+        return ()
+    counts = f.value_counts(sort=False)
+    best = counts.index[int(np.argmax(counts.to_numpy()))]
+    return tuple(t.strip() for t in best.split("+") if t.strip())
+
+
 def read_workflow_inputs(
     paths, method: str, calibration_speeds_kmh: Sequence[float], validation_speeds_kmh: Sequence[float]
 ) -> DiagnosisInputs:
@@ -108,13 +124,15 @@ def read_workflow_inputs(
     params = method_rows(pd.read_parquet(path("params")), method, path("params"))
     best = Path(path("best_model")).read_text().strip()
     g = geometric_factors(vt, params)
+    cv = pd.read_csv(path("cv_predictions"))
     return DiagnosisInputs(
         sites=pd.read_parquet(path("ingest")),
         measured=measured_table(
             pd.read_parquet(path("dft")), pd.read_parquet(path("traces")), calibration_speeds_kmh, validation_speeds_kmh
         ),
         simulated=vt[["site", "speed_kmh", "sn_sim"]].rename(columns={"sn_sim": "sn"}),
-        predicted=between_site_predictions(g, pd.read_csv(path("cv_predictions")), best),
+        predicted=between_site_predictions(g, cv, best),
         texture=pd.read_parquet(path("wide")),
         prediction_model=best,
+        prediction_features=prediction_features(cv, best),
     )

@@ -42,6 +42,39 @@ def _fmt_group(group, n_show: int = 6) -> str:
     return ", ".join(g[:n_show]) + (f" (+{len(g) - n_show} more)" if len(g) > n_show else "")
 
 
+def _conditioned_on(top: dict, gain: dict) -> str:
+    """What a texture-adjusted test conditioned on: the prediction model's columns (when the texture model chose
+    them) and the number of texture principal components."""
+    tm = gain.get("texture_model") or {}
+    k = int(top["texture_pcs"])
+    if tm.get("lead_chosen"):
+        lead = tm.get("lead", [])
+        return (
+            f"conditional on {', '.join(lead)} (the columns of {tm.get('prediction_model')}) and "
+            f"{k - len(lead)} texture principal components"
+        )
+    return f"conditional on {k} texture principal components"
+
+
+def _texture_model_lines(gain: dict) -> list[str]:
+    """One line on the texture model the between-site tests condition on and how it predicts unseen sections."""
+    tm = gain.get("texture_model") or {}
+    if tm.get("cv_r2_pcs") is None:
+        return []
+    fmt = lambda x: "n/a" if x is None else f"{x:.3f}"  # noqa: E731
+    chosen = (
+        f"{', '.join(tm['lead'])} (the columns of {tm.get('prediction_model')}) + {tm.get('pcs_with_lead')} PCs"
+        if tm.get("lead_chosen")
+        else f"{tm.get('pcs')} texture PCs"
+    )
+    return [
+        f"Texture model of the between-site tests: {chosen}. Leave-one-section-out R^2 of the measured curves: "
+        f"mean per speed {fmt(tm.get('cv_r2_mean_per_bin'))}, PCs {fmt(tm.get('cv_r2_pcs'))}, with the prediction "
+        f"model's columns {fmt(tm.get('cv_r2_lead'))}.",
+        "",
+    ]
+
+
 def _named_lines(top: dict | None, gain: dict) -> list[str]:
     """The report's opening: the named cause, its extension and (DrainageIFI) the curve forms chosen per fold."""
     if top is None:
@@ -55,11 +88,7 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         f"**Named cause: `{top['variable']}`** ({top['level']}, {top['kind']}); correlated group: {grp}; "
         f"effect {top['effect']:.4f} mu, cv gain {top['cv_gain']:.3f}, p = {top['p_value']:.2g}, "
         f"p_adj = {top['p_adjusted']:.2g}"
-        + (
-            f"; tested beyond the texture (conditional on {top['texture_pcs']} texture principal components)"
-            if top.get("texture_pcs", -1) >= 0
-            else ""
-        )
+        + (f"; tested beyond the texture ({_conditioned_on(top, gain)})" if top.get("texture_pcs", -1) >= 0 else "")
         + ".",
         "",
         f"Extension applied: **{gain.get('extension')}**"
@@ -150,7 +179,8 @@ def report_markdown(clist: list[dict], gain: dict, figures: dict | None, out: Pa
     """The text of report.md: named cause, gains, the top ``top_n`` candidates, figures (paths relative to
     ``out``)."""
     top = clist[0] if clist and clist[0]["significant"] else None
-    lines = ["# Model criticism", ""] + _named_lines(top, gain) + _gain_lines(gain) + _candidate_lines(clist, top_n)
+    lines = ["# Model criticism", ""] + _named_lines(top, gain) + _gain_lines(gain) + _texture_model_lines(gain)
+    lines += _candidate_lines(clist, top_n)
     return "\n".join(lines + _figure_lines(figures, out)) + "\n"
 
 

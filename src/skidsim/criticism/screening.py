@@ -161,7 +161,9 @@ class TextureAdjusted:
 
 def texture_adjusted(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None) -> TextureAdjusted | None:
     """The texture adjustment of a between-site level (:func:`texture_adjustment` of the measured curve on the
-    texture PCs); None within sites, without the measured matrix, or with too few sections to condition on a PC
+    texture model's columns ``pcs``: the prediction model's lead columns when
+    :func:`~skidsim.criticism.adjustment.texture_model_scores` chose them, then texture PCs); None within sites,
+    without the measured matrix, or with too few sections to condition on a PC
     (the residual test is kept)."""
     M = ctx.data.measured
     if ctx.data.level != "between-site" or M is None:
@@ -169,7 +171,8 @@ def texture_adjusted(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame |
     scores = scores_for(ctx.data.site_ids, pcs, cands.covariates, cands.info)
     if scores.shape[1] == 0:
         return None
-    k, N, k_cv = texture_adjustment(M, scores, ctx.sec)
+    n_lead = int(pcs.attrs.get("n_lead", 0)) if pcs is not None and set(pcs.index) == set(ctx.data.site_ids) else 0
+    k, N, k_cv = texture_adjustment(M, scores, ctx.sec, n_lead=n_lead)
     if k < 1:
         return None
     DM = M - M.mean(axis=1, keepdims=True)

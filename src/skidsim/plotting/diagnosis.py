@@ -66,10 +66,11 @@ def plot_residuals_vs_variable(residuals: pd.DataFrame, covariates: pd.DataFrame
     return Path(path)
 
 
-def plot_added_variable(av: pd.DataFrame, cause: dict, path) -> Path:
+def plot_added_variable(av: pd.DataFrame, cause: dict, path, texture_model: dict | None = None) -> Path:
     """Added-variable plot of a texture-adjusted cause (``skidsim.criticism.added_variable``): measured site mean
-    (mu) or speed slope (mu per 10 km/h) against the covariate, both net of the texture PCs; the least-squares
-    line's slope is the partial effect."""
+    (mu) or speed slope (mu per 10 km/h) against the covariate, both net of the texture model (the prediction
+    model's columns when ``texture_model`` (gain.json ``texture_model``) says they were chosen, and texture PCs);
+    the least-squares line's slope is the partial effect."""
     x = av["covariate_adj"].to_numpy(float)
     y = av["measured_adj"].to_numpy(float)
     what = "site mean (mu)" if cause["kind"] == "main" else "speed slope (mu per 10 km/h)"
@@ -82,7 +83,10 @@ def plot_added_variable(av: pd.DataFrame, cause: dict, path) -> Path:
             ax.legend()
         ax.axhline(0, color="k", lw=0.8)
         k = cause["texture_pcs"]
-        ax.set_xlabel(f"{cause['variable']} net of {k} texture PCs")
+        tm = texture_model or {}
+        lead = tm.get("lead", []) if tm.get("lead_chosen") else []
+        net = (", ".join(lead) + f" + {k - len(lead)} texture PCs") if lead else f"{k} texture PCs"
+        ax.set_xlabel(f"{cause['variable']} net of {net}")
         ax.set_ylabel(f"measured {what} net of texture")
         ax.set_title(f"between sites: {cause['variable']} beyond texture ({cause['kind']})")
     return Path(path)
@@ -149,7 +153,9 @@ def diagnosis_figures(result, out_dir) -> dict:
         )
         if len(result.added_variable):
             figs[f"Measured friction against {c['variable']}, both net of the texture (added-variable plot)"] = (
-                plot_added_variable(result.added_variable, c, out / "added_variable.png")
+                plot_added_variable(
+                    result.added_variable, c, out / "added_variable.png", result.gain.get("texture_model")
+                )
             )
     if len(result.predictions):
         figs["Measured against model before and after the extension (held-out data)"] = plot_before_after(
