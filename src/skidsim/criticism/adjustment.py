@@ -81,11 +81,7 @@ def texture_adjustment(
     n_sec = int(folds.max()) + 1
     top = min(n_sec - 2, n // 3, scores.shape[1]) if k_max is None else min(int(k_max), scores.shape[1])
     top = max(top, n_lead)
-    best_k, best = n_lead, np.inf
-    for k in range(n_lead, top + 1):
-        sse = _loso_sse(M, np.c_[np.ones(n), scores[:, :k]], folds, n_sec)
-        if sse < best * (1 - 1e-12):
-            best_k, best = k, sse
+    best_k = n_lead + _best_loso(M, scores[:, :n_lead], scores[:, n_lead:], folds, n_sec, top)[1]
     k = best_k
     var = scores[:, n_lead:].var(axis=0)
     if len(var) and var.sum() > 0:
