@@ -7,8 +7,9 @@ Residuals are averaged per site and speed bin; only bins observed at every site 
   free site permutations; every other covariate: sections as blocks and sites within sections);
 * texture-adjusted tests (between sites, sites.csv covariates that vary within sections): the candidate's part
   orthogonal to the leading texture PCs against the residuals of the measured curve on them (Freedman & Lane
-  1983), so a covariate that correlates with texture by chance is neither credited with texture's effect nor
-  absorbed by the texture model;
+  1983; the permuted residuals leverage-corrected per section, so the test holds its level), so a covariate
+  that correlates with texture by chance is neither credited with texture's effect nor absorbed by the texture
+  model;
 * MPD x speed within sites: the amplitude of the shared residual shape against the IFI's 1/Sp(MPD);
 * the functional form: the mean residual shape over sites, against random sign flips of whole sections' profiles
   (between sites, the shape the texture model adds to the within-site residual, ``sn_sim - sn_pred``).
@@ -25,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .adjustment import adjusted_basis, basis, residualise, texture_adjustment
+from .adjustment import adjusted_basis, basis, leverage_corrected, residualise, texture_adjustment
 from .causes import Cause, make_causes, rank_causes
 from .covariates import CandidateRoles, CandidateSet, candidate_set, scores_for
 from .crossval import cv_sse, folds, is_section_nested
@@ -147,8 +148,10 @@ def level_context(data: LevelData, cands: CandidateSet, P: int, rng) -> LevelCon
 @dataclass
 class TextureAdjusted:
     """Nuisance of the texture-adjusted tests of one level: ``k`` PCs conditioned on (design ``N``), ``k_cv`` PCs
-    of the best predictive texture model, the PC ``scores``, the measured curve per kind (``Ys_cv``) and its
-    residuals on ``N`` (``Ys_adj``), and which candidates are tested this way (``adjusted``)."""
+    of the best predictive texture model, the PC ``scores``, the measured curve per kind (``Ys_cv``), its
+    residuals on ``N`` (``Ys_adj``, the observed statistic) and their leverage-corrected form that is permuted
+    (``Ys_perm``, :func:`~skidsim.criticism.adjustment.leverage_corrected`), and which candidates are tested this
+    way (``adjusted``)."""
 
     k: int
     k_cv: int
@@ -157,6 +160,7 @@ class TextureAdjusted:
     Ys_cv: dict
     Ys_adj: dict
     adjusted: dict
+    Ys_perm: dict
 
 
 def texture_adjusted(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None) -> TextureAdjusted | None:
@@ -181,7 +185,8 @@ def texture_adjusted(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame |
     adjusted = {
         c: ctx.info[c][0] == "sites" and not ctx.section_level[c] and not ctx.is_section_id[c] for c in ctx.C.columns
     }
-    return TextureAdjusted(k, k_cv, N, scores, Ys_cv, Ys_adj, adjusted)
+    Ys_perm = {kind: leverage_corrected(R, N, ctx.sec) for kind, R in Ys_adj.items()}
+    return TextureAdjusted(k, k_cv, N, scores, Ys_cv, Ys_adj, adjusted, Ys_perm)
 
 
 @dataclass
@@ -251,7 +256,7 @@ def _covariate_batch(
     owner = np.concatenate([np.full(bk[c].shape[1], k) for k, c in enumerate(names)])
     A = Q.T @ Y
     T = np.bincount(owner, weights=(A * A).sum(axis=1), minlength=len(names))
-    Tp = perm_stats(Y, Q, owner, len(names), perms)
+    Tp = perm_stats(ta.Ys_perm[kind] if adj else Y, Q, owner, len(names), perms)
     batch = _Batch(kind, Y, adj, bk)
     return [_covariate_test(ctx, ta, batch, c, T[k], Tp[:, k]) for k, c in enumerate(names)]
 
