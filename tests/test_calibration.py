@@ -548,6 +548,47 @@ def test_alpha_trust_region_window_and_where_it_binds():
     assert strict.settings["alpha_steps_limited"] == 0 and strict.params == unlimited.params
 
 
+class SlipFeedback:
+    """FE stand-in ``SN = g mu(v + d)`` whose slip offset d (km/h) falls as the law's friction at v rises above
+    a reference law's: ``d = d0 - kappa 100 (mu(v) - mu_ref(v))``. A surrogate corrected to the latest batch alone
+    then overshoots: the correction's fixed-point map has a slope below -1, and the slip offsets oscillate from
+    batch to batch. The reference law is a fixed point (offset d0), so the measured curve it makes is in reach."""
+
+    def __init__(self, reference: ExponentialDecay, g=1.1, d0_kmh=4.0, kappa=2.0):
+        self.ref, self.g, self.d0, self.kappa = reference, g, d0_kmh, kappa
+
+    def __call__(self, v, law):
+        d = self.d0 - self.kappa * 100.0 * (float(law.mu_kmh(v)) - float(self.ref.mu_kmh(v)))
+        return FEOutcome(sn=self.g * float(law.mu_kmh(v + d)), n_steps=steps_for(v), wall_s=0.0)
+
+
+def test_relaxed_corrections_converge_where_whole_steps_oscillate():
+    """Where the FE's slip offset responds to the law, whole corrections (relaxation 1) chase the latest batch
+    and never agree with the FE within 24 runs; corrections that move half the way (the default) converge, and the
+    FE runs of the final law then match the measured values within tol. Where whole steps converge at the
+    first correction (the smooth slip surrogate), the relaxation changes nothing: it acts from the second
+    correction on."""
+    truth = ExponentialDecay(mu_s=0.8, mu_k=0.2, alpha=0.06)
+    sim = SlipFeedback(truth)
+    v = np.arange(5.0, 81.0)
+    meas = pd.DataFrame({"speed_kmh": v, "mu": [sim(x, truth).sn for x in v]})
+    prior = {"speeds_kmh": [20.0, 40.0, 60.0], "b": [1.0, 1.0, 1.0], "slip_offsets_kmh": [0.0, 0.0, 0.0]}
+    whole = calibrate_fast(sim, meas, JointOptions(correction_relaxation=1.0), prior=prior)
+    half = calibrate_fast(sim, meas, JointOptions(), prior=prior)
+    assert not whole.converged and whole.n_fe_runs == 24
+    assert half.converged and half.n_fe_runs < 24
+    for speed in (20.0, 40.0, 60.0):
+        m = float(np.interp(speed, v, meas["mu"]))
+        assert abs(sim(speed, half.params).sn - m) <= 0.01 + 1e-9
+    assert max(abs(sim(x, whole.params).sn - float(np.interp(x, v, meas["mu"]))) for x in (20.0, 40.0, 60.0)) > 0.02
+    assert half.settings["correction_relaxation"] == 0.5
+    # one correction is enough for the smooth surrogate: the same result with and without the relaxation
+    meas = pd.DataFrame({"speed_kmh": v, "mu": 1.13 * TRUTH.mu(SlipSurrogate.slip_ms(v))})
+    a = calibrate_fast(SlipSurrogate(), meas, JointOptions(tol=1e-6))
+    b = calibrate_fast(SlipSurrogate(), meas, JointOptions(tol=1e-6, correction_relaxation=1.0))
+    assert a.params == b.params and a.n_fe_runs == b.n_fe_runs and a.converged
+
+
 def test_prior_reference_sites_spread_over_the_table():
     sites = [f"S{i}" for i in range(36)]
     assert prior_reference_sites(sites, 3) == ["S0", "S18", "S35"]  # indices round(0, 17.5, 35)
@@ -571,7 +612,8 @@ def test_options_defaults_are_the_config_and_unknown_keys_are_refused():
     assert IdentifiabilityOptions.from_config(cfg["identifiability"]) == IdentifiabilityOptions()
     assert StudyOptions().max_iter == 8 and StudyOptions().tol == 0.10
     assert StudyOptions().start == (0.4, 0.35, 0.6) and StudyOptions().intervals["mu_k"] == (0.0, 0.7)
-    assert (JointOptions().max_fe_runs, JointOptions().tol, JointOptions().model) == (12, 0.01, "slip")
+    assert (JointOptions().max_fe_runs, JointOptions().tol, JointOptions().model) == (24, 0.01, "slip")
+    assert JointOptions().correction_relaxation == 0.5
     assert JointOptions().prior_sites == 3 and JointOptions().fit_range_kmh is None
     # the config's start mapping; a partial section keeps the other defaults
     st = StudyOptions.from_config({"start": {"alpha": 0.1}, "intervals": {"mu_s": [0.1, 0.9]}, "max_iter": 5})

@@ -92,6 +92,7 @@ def calibrate_fast(
         "window_kmh": opt.window_kmh,
         "alpha_step_factor": opt.alpha_step_factor,
         "alpha_steps_limited": int(sur.limited),
+        "correction_relaxation": opt.correction_relaxation,
         "prior": None
         if prior is None
         else {k: [float(x) for x in prior[k]] for k in ("speeds_kmh", "b", "slip_offsets_kmh")},
@@ -154,6 +155,8 @@ class _Surrogate:
         self.d = np.zeros(spd.size)  # effective slip-speed offsets, km/h (model="slip")
         self.last: list[tuple[float, float] | None] = [None] * spd.size
         self.limited = 0  # refits the alpha trust region moved (alpha_step_factor)
+        self.relaxation = float(opt.correction_relaxation)
+        self.n_corrections = 0
 
     def start_from_prior(self, prior: Mapping[str, Sequence[float]]) -> None:
         """b and d from the campaign prior (:func:`surrogate_prior`), interpolated to the calibration speeds."""
@@ -202,9 +205,19 @@ class _Surrogate:
 
         ``model="slip"``: the offset d_i from inverting the law, ``mu(v_i + d_i) = (SN_i - a_i) / b_i`` (kept within
         0.25..4 times the speed; where not invertible - flat law, value outside [mu_k, mu_s] - the ratio
-        ``b_i = SN_i / mu_i``). ``model="ratio"``: ``b = SN/mu, a = 0`` (fixed point on g) or, once two runs at that
-        speed differ in mu by >= ``secant_min_dmu``, the secant line through them (slope within 0.2..5).
+        ``b_i = SN_i / mu_i``); from the second correction on, b and d move only the share ``correction_relaxation``
+        of the way to those values. ``model="ratio"``: ``b = SN/mu, a = 0`` (fixed point on g) or, once two runs at
+        that speed differ in mu by >= ``secant_min_dmu``, the secant line through them (slope within 0.2..5).
         """
+        self.n_corrections += 1
+        b_old, d_old = self.b.copy(), self.d.copy()
+        self._correct_whole(law, mu_i, sn)
+        if self.model == "slip" and self.n_corrections >= 2 and self.relaxation < 1.0:
+            self.b = b_old + self.relaxation * (self.b - b_old)
+            self.d = d_old + self.relaxation * (self.d - d_old)
+
+    def _correct_whole(self, law: ExponentialDecay, mu_i: np.ndarray, sn: np.ndarray) -> None:
+        """The correction of :meth:`correct` as a whole step (the values the latest batch implies)."""
         a_i, b_i, d_i, spd = self.a, self.b, self.d, self.spd
         for j in range(spd.size):
             mu_j, sn_j = float(mu_i[j]), float(sn[j])

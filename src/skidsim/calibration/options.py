@@ -143,10 +143,16 @@ class JointOptions:
     alpha_step_floor_s_per_m: s/m added to the window's upper end, so that a flat law (alpha near 0) can move.
     alpha_step_max_cost: mu; the largest increase of the fit's RMSE on the fitted points that the trust region
         may cost (larger: the data want the far law, and the refit goes there).
+    correction_relaxation: share (0 < r <= 1) of the way the second and later corrections of the surrogate move
+        its factors ``b`` and slip offsets ``d`` towards what the latest FE batch implies (``model="slip"``); the
+        first correction, which moves the campaign prior to the site, is always whole. 1: each correction follows
+        the latest batch alone. Below 1 it is an under-relaxed fixed-point iteration: where the FE's response
+        differs between the laws tried (coarse texture), whole steps chase the latest batch and oscillate
+        (docs/calibration.md, "Relaxed corrections and the FE budget").
     """
 
     tol: float = 0.01
-    max_fe_runs: int = 12
+    max_fe_runs: int = 24
     fit_range_kmh: tuple[float, float] | None = None
     model: str = "slip"
     prior_sites: int = 3
@@ -159,6 +165,7 @@ class JointOptions:
     alpha_step_factor: float | None = 2.0
     alpha_step_floor_s_per_m: float = 0.02
     alpha_step_max_cost: float = 0.005
+    correction_relaxation: float = 0.5
 
     def __post_init__(self):
         where = "calibration.ours"
@@ -188,6 +195,9 @@ class JointOptions:
             raise ConfigError(f"{where}.alpha_step_factor: expected a number > 1 or null, got {got!r}")
         _positive(f"{where}.alpha_step_floor_s_per_m", self.alpha_step_floor_s_per_m)
         _positive(f"{where}.alpha_step_max_cost", self.alpha_step_max_cost)
+        r = self.correction_relaxation
+        if isinstance(r, bool) or not isinstance(r, (int, float)) or not 0 < r <= 1:
+            raise ConfigError(f"{where}.correction_relaxation: expected a number in (0, 1], got {r!r}")
 
     @classmethod
     def from_config(cls, section: Mapping | None) -> JointOptions:
