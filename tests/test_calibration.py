@@ -589,6 +589,54 @@ def test_relaxed_corrections_converge_where_whole_steps_oscillate():
     assert a.params == b.params and a.n_fe_runs == b.n_fe_runs and a.converged
 
 
+def test_whole_step_prediction_reproduces_an_exact_slip_response_the_relaxed_one_lags():
+    """An FE whose response is exactly ``g mu(v + d)``: a whole correction inverts the law to that ``d`` itself, so
+    the whole-step surrogate then predicts the FE at any other law to round-off. After a first batch with offsets
+    ``d0`` and a second whose offsets moved to ``d0 + 2`` km/h, the relaxed surrogate (0.5, acting from the second
+    correction on) sits at ``d0 + 1`` and misses the FE at another law, the whole-step one does not; with whole
+    corrections (relaxation 1) the two are the same. The FE-smoothness flag is measured against the whole step."""
+    from skidsim.calibration.joint import _Surrogate
+
+    g, d0 = 1.1, np.array([6.0, 4.0, 2.0])
+    spd = np.array([20.0, 40.0, 60.0])
+    law1, law2 = ExponentialDecay(0.8, 0.2, 0.06), ExponentialDecay(0.7, 0.3, 0.1)
+
+    def fe(law, d):
+        return g * law.mu_kmh(spd + d)
+
+    for relax in (0.5, 1.0):
+        sur = _Surrogate(spd, JointOptions(correction_relaxation=relax))
+        sur.b[:] = g
+        sur.d[:] = [1.0, 0.0, -1.0]
+        sur.correct(law1, sur.predict(law1)[0], fe(law1, d0))  # first correction: whole either way
+        assert np.allclose(sur.d, d0, atol=1e-9)
+        sur.correct(law1, sur.predict(law1)[0], fe(law1, d0 + 2.0))  # second: relaxed when relax < 1
+        assert np.allclose(sur.whole[2], d0 + 2.0, atol=1e-9)
+        assert np.allclose(sur.d, d0 + (1.0 if relax < 1.0 else 2.0), atol=1e-9)
+        assert np.allclose(sur.predict_whole(law2), fe(law2, d0 + 2.0), atol=1e-12)
+        miss_relaxed = np.max(np.abs(sur.predict(law2)[1] - fe(law2, d0 + 2.0)))
+        assert (miss_relaxed > 1e-3) == (relax < 1.0), miss_relaxed
+
+
+def test_history_records_the_whole_step_prediction():
+    """In the history of a relaxed calibration the whole-step prediction equals the surrogate's own until the
+    relaxation first acts (iteration 3: after the second correction) and differs from then on; with whole
+    corrections they agree in every row."""
+    truth = ExponentialDecay(mu_s=0.8, mu_k=0.2, alpha=0.06)
+    sim = SlipFeedback(truth)
+    v = np.arange(5.0, 81.0)
+    meas = pd.DataFrame({"speed_kmh": v, "mu": [sim(x, truth).sn for x in v]})
+    prior = {"speeds_kmh": [20.0, 40.0, 60.0], "b": [1.0, 1.0, 1.0], "slip_offsets_kmh": [0.0, 0.0, 0.0]}
+    for relax in (1.0, 0.5):
+        h = calibrate_fast(sim, meas, JointOptions(correction_relaxation=relax), prior=prior).history
+        ver = h[h["stage"] == "verify"]
+        same = np.isclose(ver["sn_pred"], ver["sn_pred_whole"], atol=1e-12)
+        assert same[ver["iteration"].to_numpy() <= 2].all()
+        assert same.all() == (relax == 1.0)
+        if relax < 1.0:
+            assert not same[ver["iteration"].to_numpy() >= 3].any()
+
+
 def test_prior_reference_sites_spread_over_the_table():
     sites = [f"S{i}" for i in range(36)]
     assert prior_reference_sites(sites, 3) == ["S0", "S18", "S35"]  # indices round(0, 17.5, 35)

@@ -159,6 +159,41 @@ def test_rough_fe_response_is_flagged_not_smooth():
     assert rec["fe_misses"]["verify_corrected_max"] > 0.03 or rec["fe_misses"]["validation_max"] > 0.03
 
 
+def test_fe_smoothness_miss_is_measured_after_small_steps_against_the_whole_step_surrogate():
+    """``verify_corrected_max`` compares the FE with the whole-step prediction ``sn_pred_whole`` where the history
+    has it (histories stored without it use ``sn_pred``); ``verify_all_max`` stays the miss of the surrogate used.
+    The ``fe_not_smooth`` miss ``small_step_max`` counts only batches whose law moved by at most ``small_step_mu``
+    from the batch before (alpha 0: mu = mu_s at every speed, so the step is |d mu_s|)."""
+    from types import SimpleNamespace
+
+    from skidsim.calibration.identifiability import _fe_misses
+
+    mu_s = [0.50, 0.60, 0.62, 0.63]  # steps: -, 0.10, 0.02, 0.01
+    h = pd.DataFrame(
+        {
+            "stage": "verify",
+            "iteration": np.repeat([1, 2, 3, 4], 2),
+            "speed_kmh": [20.0, 60.0] * 4,
+            "mu_s": np.repeat(mu_s, 2),
+            "mu_k": 0.2,
+            "alpha": 0.0,
+            "sn_sim": [0.50, 0.40, 0.66, 0.55, 0.53, 0.42, 0.60, 0.50],
+            "sn_pred": [0.45, 0.40, 0.60, 0.55, 0.49, 0.42, 0.60, 0.50],  # relaxed: 0.04 at iteration 3
+            "sn_pred_whole": [0.45, 0.40, 0.60, 0.55, 0.525, 0.42, 0.59, 0.50],  # whole: 0.06 (large step), 0.005, 0.01
+        }
+    )
+    m = _fe_misses(SimpleNamespace(history=h, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.03)
+    assert m["verify_all_max"] == pytest.approx(0.06)
+    assert m["verify_corrected_max"] == pytest.approx(0.06)  # the large step's miss
+    assert m["small_step_max"] == pytest.approx(0.01) and m["n_small_step"] == 2  # iterations 3 and 4
+    assert m["miss_per_step_median"] == pytest.approx(np.median([0.06 / 0.1, 0.005 / 0.02, 0.01 / 0.01]))
+    tight = _fe_misses(SimpleNamespace(history=h, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.015)
+    assert tight["small_step_max"] == pytest.approx(0.01) and tight["n_small_step"] == 1
+    old = h.drop(columns="sn_pred_whole")  # stored before the column: the surrogate used
+    m_old = _fe_misses(SimpleNamespace(history=old, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.03)
+    assert m_old["small_step_max"] == pytest.approx(0.04)
+
+
 def test_jacobian_and_combination_gradients_match_finite_differences():
     law = ExponentialDecay(0.7, 0.3, 0.12)
     m = SurrogateMap((20.0, 40.0, 60.0), (0.0, 0.01, 0.0), (1.02, 1.05, 1.08), (6.0, 4.0, 2.0))

@@ -24,8 +24,10 @@ Per site (:func:`assess`):
 * **flags** with reasons: ``not_converged``; ``at_bound`` (which parameter, which bound, and whether the
   bound costs fit); ``outside_law`` (the best law of the family, with wide bounds, through the mapping, cannot
   fit the trace points within ``outside_law_factor * sigma``); ``fe_not_smooth`` (the FE missed the surrogate by
-  more than ``fe_miss_max`` in a verification run after the surrogate had been corrected, or at the validation
-  speeds); ``fit_beyond_noise`` (FE RMSE at calibration or validation speeds above ``fit_noise_factor * sigma``).
+  more than ``fe_miss_max`` in a verification run after the surrogate had been corrected and the law had changed
+  by at most ``fe_smooth_step_max`` (mu), measured against the surrogate as that correction would be as a whole
+  step, or at the validation speeds); ``fit_beyond_noise``
+  (FE RMSE at calibration or validation speeds above ``fit_noise_factor * sigma``).
 * **uncertainty**: the Jacobian ``J`` of the fitted curve (the points the calibration fitted) with respect to
   ``(mu_s, mu_k, alpha)`` at the calibrated law, the Gauss-Newton covariance ``sigma_eff^2 (J'J)^-1`` with
   ``sigma_eff^2 = max(sigma^2, s_resid^2) (1 + rho) / (1 - rho)`` (``s_resid``: the residual scatter of the law
@@ -388,17 +390,46 @@ def local_uncertainty(J: np.ndarray, sigma_eff: float, widths: np.ndarray, *, z:
 # the per-site record
 
 
+def _batch_steps(ver: pd.DataFrame) -> pd.Series:
+    """Per verification batch (``iteration``), the largest change of the law's mu at the batch's speeds from the
+    law of the batch before (NaN for the first batch)."""
+    laws = ver.groupby("iteration")[["mu_s", "mu_k", "alpha"]].first().sort_index()
+    out = {}
+    prev = None
+    for k, row in laws.iterrows():
+        law = ExponentialDecay(float(row["mu_s"]), float(row["mu_k"]), float(row["alpha"]))
+        v = ver.loc[ver["iteration"] == k, "speed_kmh"].to_numpy(float)
+        out[k] = float("nan") if prev is None else float(np.max(np.abs(law.mu_kmh(v) - prev.mu_kmh(v))))
+        prev = law
+    return pd.Series(out, dtype=float)
+
+
 def _fe_misses(
-    result: CalibrationResult, mapping: SurrogateMap, validation: pd.DataFrame | None, cal_speeds: Sequence[float]
+    result: CalibrationResult,
+    mapping: SurrogateMap,
+    validation: pd.DataFrame | None,
+    cal_speeds: Sequence[float],
+    small_step_mu: float = 0.03,
 ) -> dict:
-    """Surrogate-vs-FE misses (SN): verification runs after the surrogate was corrected (iteration >= 2),
-    all verification runs, and the FE runs of the final law at the validation speeds."""
+    """Surrogate-vs-FE misses (SN): verification runs after the surrogate was corrected (iteration >= 2; against
+    the surrogate as its latest correction would be as a whole step, ``sn_pred_whole``, where the history has it:
+    with ``correction_relaxation`` below 1 the surrogate used holds back part of each step by design), all
+    verification runs (against the surrogate used), and the FE runs of the final law at the validation speeds.
+
+    Each corrected batch also gets its step: the largest change of the law's mu (at the batch's speeds) from the
+    law of the batch before, on which the surrogate was corrected. ``small_step_max`` is the largest miss over the
+    batches whose step is at most ``small_step_mu``: a miss after a small change of the law is roughness of the
+    FE's response; a miss after a large step that grows with the step is a response slope the surrogate does not
+    have (smooth, but not the surrogate's; ``miss_per_step_median``, the median ratio miss / step, says how far)."""
     h = result.history
     out = {
         "verify_all_max": float("nan"),
         "verify_corrected_max": float("nan"),
         "n_verify": 0,
         "n_verify_corrected": 0,
+        "small_step_max": float("nan"),
+        "n_small_step": 0,
+        "miss_per_step_median": float("nan"),
         "validation_max": float("nan"),
         "n_validation": 0,
         "validation_runs": [],
@@ -409,10 +440,22 @@ def _fe_misses(
         out["n_verify"] = int(len(ver))
         if len(ver):
             out["verify_all_max"] = float(miss.max())
+        if "sn_pred_whole" in ver:  # the whole-step surrogate: the FE's own roughness, not the relaxation's lag
+            miss = (ver["sn_sim"] - ver["sn_pred_whole"].fillna(ver["sn_pred"])).abs()
         corr = miss[ver["iteration"] >= 2]
         out["n_verify_corrected"] = int(len(corr))
         if len(corr):
             out["verify_corrected_max"] = float(corr.max())
+            steps = _batch_steps(ver)
+            batch_miss = miss.groupby(ver["iteration"]).max()
+            it = [k for k in steps.index if k >= 2 and k in batch_miss.index]
+            small = [k for k in it if steps[k] <= small_step_mu]
+            out["n_small_step"] = len(small)
+            if small:
+                out["small_step_max"] = float(batch_miss[small].max())
+            ratio = [batch_miss[k] / steps[k] for k in it if steps[k] > 0]
+            if ratio:
+                out["miss_per_step_median"] = float(np.median(ratio))
     if validation is not None and len(validation) and result.method == "ours":
         cal = np.asarray(cal_speeds, dtype=float)
         rows = validation[~np.isclose(validation["speed_kmh"].to_numpy(float)[:, None], cal[None, :]).any(axis=1)]
@@ -469,7 +512,7 @@ def assess(
     have_sigma = math.isfinite(sigma) and sigma > 0
     fam = _family_fits(mapping, law, v_fit, y_fit, bounds, opt)
     fe, fe_points = _fe_fit(result, trace, validation, cal, val, v_all, source)
-    misses = _fe_misses(result, mapping, validation, cal)
+    misses = _fe_misses(result, mapping, validation, cal, opt.fe_smooth_step_max)
     flags, at_bound = _flags(result, bounds, opt, sigma, fam, fe, misses, fit_points)
     unc = _uncertainty(law, mapping, v_fit, y_fit, bounds, cal, sigma, fam, opt) if have_sigma else {"available": False}
     within = have_sigma and "fit_beyond_noise" not in flags and math.isfinite(fe["calibration"])
@@ -675,7 +718,10 @@ def _flags(
         )
     miss_parts = []
     for key, label in (
-        ("verify_corrected_max", "a verification run after the surrogate was corrected"),
+        (
+            "small_step_max",
+            f"a verification run after a correction and a change of the law by at most {opt.fe_smooth_step_max:g} mu",
+        ),
         ("validation_max", "a validation speed"),
     ):
         if math.isfinite(misses[key]) and misses[key] > opt.fe_miss_max:
@@ -843,6 +889,8 @@ def table_row(rec: Mapping) -> dict:
     ):
         row[k] = rec["fit"][k]
     row["fe_miss_verify_corrected_max"] = rec["fe_misses"]["verify_corrected_max"]
+    row["fe_miss_small_step_max"] = rec["fe_misses"]["small_step_max"]
+    row["fe_miss_per_step_median"] = rec["fe_misses"]["miss_per_step_median"]
     row["fe_miss_validation_max"] = rec["fe_misses"]["validation_max"]
     unc = rec["uncertainty"]
     for p in PARAMS:

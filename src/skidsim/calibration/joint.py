@@ -157,6 +157,7 @@ class _Surrogate:
         self.limited = 0  # refits the alpha trust region moved (alpha_step_factor)
         self.relaxation = float(opt.correction_relaxation)
         self.n_corrections = 0
+        self.whole: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (a, b, d) of the latest whole step
 
     def start_from_prior(self, prior: Mapping[str, Sequence[float]]) -> None:
         """b and d from the campaign prior (:func:`surrogate_prior`), interpolated to the calibration speeds."""
@@ -200,6 +201,16 @@ class _Surrogate:
         mu_i = law.mu_kmh(self.spd + self.d)
         return mu_i, self.a + self.b * mu_i
 
+    def predict_whole(self, law: ExponentialDecay) -> np.ndarray:
+        """Surrogate SN at the calibration speeds as the latest correction would have left it as a whole step
+        (the surrogate that reproduces the latest FE batch at its law); :meth:`predict` before any correction
+        and wherever the corrections are whole. Its miss on the next batch measures how smoothly the FE responds
+        to the change of law; the relaxed surrogate's miss also carries the share of the step it held back."""
+        if self.whole is None:
+            return self.predict(law)[1]
+        a, b, d = self.whole
+        return a + b * law.mu_kmh(self.spd + d)
+
     def correct(self, law: ExponentialDecay, mu_i: np.ndarray, sn: np.ndarray) -> None:
         """Update the surrogate from one batch of FE runs ``sn`` of ``law``.
 
@@ -212,6 +223,7 @@ class _Surrogate:
         self.n_corrections += 1
         b_old, d_old = self.b.copy(), self.d.copy()
         self._correct_whole(law, mu_i, sn)
+        self.whole = (self.a.copy(), self.b.copy(), self.d.copy())
         if self.model == "slip" and self.n_corrections >= 2 and self.relaxation < 1.0:
             self.b = b_old + self.relaxation * (self.b - b_old)
             self.d = d_old + self.relaxation * (self.d - d_old)
@@ -318,9 +330,18 @@ def _iterate(
             )
             break
         mu_i, pred = sur.predict(law)
+        pred_whole = sur.predict_whole(law)
         sn = np.empty(spd.size)
         for j, v in enumerate(spd):
-            out = ev(v, law, stage="verify", iteration=it, sn_measured=float(m_cal[j]), sn_pred=float(pred[j]))
+            out = ev(
+                v,
+                law,
+                stage="verify",
+                iteration=it,
+                sn_measured=float(m_cal[j]),
+                sn_pred=float(pred[j]),
+                sn_pred_whole=float(pred_whole[j]),
+            )
             sn[j] = out.sn
         model_err = float(np.max(np.abs(sn - pred)))
         rmse = float(np.sqrt(np.mean((sn - m_cal) ** 2)))

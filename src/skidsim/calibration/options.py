@@ -219,7 +219,13 @@ class IdentifiabilityOptions:
         many sigma.
     at_bound_rel_tol: a parameter within this fraction of its bound width of a bound is ``at_bound``.
     fe_miss_max: SN; ``fe_not_smooth`` when |SN_FE - SN_surrogate| exceeds it in a verification run after the
-        surrogate was corrected at least once (iteration >= 2) or at a validation speed.
+        surrogate was corrected at least once (iteration >= 2; the surrogate as its latest correction would be
+        as a whole step, history ``sn_pred_whole``) and the law had moved by at most ``fe_smooth_step_max``, or
+        at a validation speed.
+    fe_smooth_step_max: mu; the largest change of the law (max over the batch's speeds of |mu_new - mu_old|
+        from the batch the surrogate was corrected on) after which a miss counts as roughness of the FE's
+        response. Misses after larger steps grow with the step (a response slope the surrogate does not have)
+        and are reported (``miss_per_step_median``), not flagged.
     identified_rel_halfwidth: a parameter or an eigen-direction is identified when its 95 % half-width is at
         most this fraction of the bound width.
     identified_halfwidth_mu: a curve combination (mu units) is identified when its 95 % half-width is at most this.
@@ -236,6 +242,7 @@ class IdentifiabilityOptions:
     outside_law_factor: float = 1.5
     at_bound_rel_tol: float = 0.01
     fe_miss_max: float = 0.03
+    fe_smooth_step_max: float = 0.03
     identified_rel_halfwidth: float = 0.05
     identified_halfwidth_mu: float = 0.02
     profile_points: int = 121
@@ -250,6 +257,7 @@ class IdentifiabilityOptions:
             "fit_noise_factor",
             "outside_law_factor",
             "fe_miss_max",
+            "fe_smooth_step_max",
             "identified_rel_halfwidth",
             "identified_halfwidth_mu",
             "wide_mu_max",

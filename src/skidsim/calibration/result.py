@@ -43,6 +43,7 @@ HISTORY_COLUMNS = [
     "lo",
     "hi",
     "sn_pred",
+    "sn_pred_whole",
     "cached",
     "n_steps_run",
     "n_steps",
@@ -58,7 +59,9 @@ class CalibrationResult:
     params: the calibrated law (mu_s, mu_k dimensionless, alpha in s/m).
     history: one row per evaluation the method asked for (columns ``HISTORY_COLUMNS``): stage (the
     parameter searched, or ``verify`` for ours), speed_kmh, the law, sn_sim, sn_measured, rel_err
-    (sn_sim/sn_measured - 1), search interval lo/hi (study), sn_pred (our surrogate's prediction), cached,
+    (sn_sim/sn_measured - 1), search interval lo/hi (study), sn_pred (our surrogate's prediction), sn_pred_whole
+    (ours: the prediction of the surrogate as its latest correction would be as a whole step, see
+    ``correction_relaxation``), cached,
     n_steps_run / wall_s_run (paid now), n_steps / fe_wall_s (cost of the FE run behind it, s).
     overhead_s: wall time, s, the calibration spent outside the simulator in this run.
     """
