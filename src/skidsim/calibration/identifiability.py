@@ -409,7 +409,8 @@ def _fe_misses(
     mapping: SurrogateMap,
     validation: pd.DataFrame | None,
     cal_speeds: Sequence[float],
-    small_step_mu: float = 0.03,
+    *,
+    small_step_mu: float,
 ) -> dict:
     """Surrogate-vs-FE misses (SN): verification runs after the surrogate was corrected (iteration >= 2; against
     the surrogate as its latest correction would be as a whole step, ``sn_pred_whole``, where the history has it:
@@ -512,7 +513,7 @@ def assess(
     have_sigma = math.isfinite(sigma) and sigma > 0
     fam = _family_fits(mapping, law, v_fit, y_fit, bounds, opt)
     fe, fe_points = _fe_fit(result, trace, validation, cal, val, v_all, source)
-    misses = _fe_misses(result, mapping, validation, cal, opt.fe_smooth_step_max)
+    misses = _fe_misses(result, mapping, validation, cal, small_step_mu=opt.fe_smooth_step_max)
     flags, at_bound = _flags(result, bounds, opt, sigma, fam, fe, misses, fit_points)
     unc = _uncertainty(law, mapping, v_fit, y_fit, bounds, cal, sigma, fam, opt) if have_sigma else {"available": False}
     within = have_sigma and "fit_beyond_noise" not in flags and math.isfinite(fe["calibration"])
