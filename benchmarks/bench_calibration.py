@@ -8,7 +8,8 @@ FE wall time is *modelled* from the field notes' linear-elastic throughput (15,3
 FE calls: bisection bookkeeping, least-squares fits) *is* measured on this machine.
 
 DFT traces: the exponential-decay base times a drainage-like factor exp(-k (v - 20)/Sp) (as in
-``skidsim.truth``, so the law cannot represent them exactly) plus white noise 0.005, 1 km/h spacing 5..85 km/h.
+``skidsim.generators.truth``, so the
+law cannot represent them exactly) plus white noise 0.005, 1 km/h spacing 5..85 km/h.
 
 Usage: ``python benchmarks/bench_calibration.py [--sites 12] [--seed 2026] [--scenario realistic|flat]``
 (``flat``: nearly speed-independent sites, the case where the study's bisection converges at once). Prints the

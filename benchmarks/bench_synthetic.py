@@ -18,7 +18,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from skidsim import synthetic as S
+from skidsim.generators import default as S
 
 
 def main() -> None:

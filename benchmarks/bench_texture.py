@@ -175,7 +175,7 @@ def despeckle_study(path: str) -> None:
 
 def despeckle_synthetic(sites: list[str]) -> None:
     """See the module docstring (``--despeckle-synthetic``)."""
-    from skidsim import synthetic as syn
+    from skidsim.generators import default as syn
 
     c = syn.resolve_config(None)
     design = syn.design_campaign(c)

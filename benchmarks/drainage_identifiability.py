@@ -1,6 +1,6 @@
 """How much of a hidden drainage effect the study's exponential-decay law leaves in the within-site residual.
 
-For each drainage form of the truth model (``skidsim.truth``: "ifi", exponential in speed; "squeeze", partial
+For each drainage form of the truth model (``skidsim.generators.truth``: "ifi", exponential in speed; "squeeze", partial
 hydroplaning, quadratic) and size, and for MPD 0.5-1.4 mm, the noise-free true curve is fitted by the study's law
 ``mu_k + (mu_s - mu_k) exp(-alpha s)`` within the study's bounds (``skidsim.calibration.fit_exponential_decay``)
 on 1-km/h points over the calibration range 20-60 km/h, as our calibration does with the trace; printed: the
@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from skidsim import truth as T
 from skidsim.calibration import fit_exponential_decay
+from skidsim.generators import truth as T
 
 DESCRIPTORS = {"micro_sdq": 0.4, "micro_sq_mm": 0.01}
 ROW = {"temperature_c": 15.8}

@@ -5,7 +5,8 @@
 
 For each generator of :mod:`skidsim.generators` the campaign is written once without a hidden effect and once per
 effect (``friction.hidden_effect``, strength ``--kappa``), all from the same seed (``default``: the embedded
-generator :mod:`skidsim.synthetic`, its truth's drainage effect off, or on with size ``--kappa`` in the IFI form
+generator :mod:`skidsim.generators.default`, its truth's drainage effect off, or on with size ``--kappa`` in the IFI
+form
 for ``drainage`` and the squeeze form for ``squeeze``): the scans and the trace noise
 are the same files (checked byte by byte), only the friction curves differ. The workflow (``config/config.yaml``
 + ``config/quick.yaml``) computes the texture table of the campaign without the effect and the measured DFT
@@ -36,9 +37,9 @@ SPEEDS_KMH = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
 
 
 def generate_default(campaign: Path, effect: str | None, a) -> None:
-    """The default generator (:mod:`skidsim.synthetic`): its truth's drainage effect on (``effect`` drainage or
+    """The default generator (:mod:`skidsim.generators.default`): its truth's drainage effect on (``effect`` drainage or
     squeeze, size ``--kappa``) or off; the truth's temperature effect stays on in both."""
-    from skidsim import synthetic
+    from skidsim.generators import default as synthetic
 
     drainage = {"enabled": effect is not None}
     if effect is not None:

@@ -22,7 +22,8 @@ EFFECTS = (None, "temperature", "drainage", "squeeze", "wear", "mix")
 WLF_TR_C = -40.0
 T_ANCHOR_C = 16.0
 DRAIN_KAPPA = 0.5
-SQUEEZE_KAPPA = 0.3  # partial hydroplaning: x (1 - kappa (v^2 - 20^2) / Sp^2), as skidsim.truth's "squeeze" form
+#: partial hydroplaning: x (1 - kappa (v^2 - 20^2) / Sp^2), as skidsim.generators.truth's "squeeze" form
+SQUEEZE_KAPPA = 0.3
 WEAR_LOSS = 0.20
 #: principal components kept by the texture model: all 11 (= least squares on every texture parameter, an
 #: unbiased model, so the null campaign is a true null; fewer components leave section-structured texture out)
@@ -234,12 +235,12 @@ TEXTURE_FILE = "texture.csv"
 
 
 def write_campaign(directory, seed: int, effect: str | None = None, **kw) -> dict:
-    """Write a campaign directory: sites.csv (skidsim.synthetic.write_sites_csv: site, section, scan, dft,
+    """Write a campaign directory: sites.csv (skidsim.generators.default.write_sites_csv: site, section, scan, dft,
     temperature_c, metadata), dft/<site>.csv (one spin-down trace per site, columns speed_kmh, mu: the union of
     the noisy samples, equal speeds averaged) and texture.csv (the texture parameters per site). Returns truth."""
     from pathlib import Path
 
-    from skidsim.synthetic import write_sites_csv
+    from skidsim.generators.default import write_sites_csv
 
     d = Path(directory)
     (d / "dft").mkdir(parents=True, exist_ok=True)

@@ -42,8 +42,8 @@ SECTIONS = {
 #: Config entries that are no stage's options, with the reason.
 NOT_OPTIONS = {
     "campaign": "the input directory (null: the embedded synthetic campaign), not an option of a stage",
-    "synthetic": "overrides of skidsim.synthetic.default_config(), whose defaults live there",
-    "truth": "overrides of the synthetic campaign's truth model, whose defaults live in skidsim.synthetic",
+    "synthetic": "overrides of skidsim.generators.default.default_config(), whose defaults live there",
+    "truth": "overrides of the synthetic campaign's truth model, whose defaults live in skidsim.generators.default",
     "calibration.methods": "which calibrations the workflow runs: a choice of targets, no library default",
 }
 

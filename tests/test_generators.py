@@ -82,7 +82,7 @@ def test_generators_do_not_use_our_own_generator_or_truth_model():
         "import sys\nfrom skidsim import generators\n"
         "cfg = generators.generator_config('chips', {'n_sites': 3, 'shape': [20, 600], 'spacing_mm': 0.2})\n"
         "generators.generate_site(generators.design_campaign(cfg).iloc[0], cfg)\n"
-        "print(sorted(m for m in sys.modules if m in ('skidsim.synthetic', 'skidsim.truth')))\n"
+        "print(sorted(m for m in sys.modules if m in ('skidsim.generators.default', 'skidsim.generators.truth')))\n"
     )
     r = subprocess.run(
         [sys.executable, "-c", code],

@@ -1,6 +1,7 @@
 """Independent campaigns through the real workflow (issue 25): scans, FE, calibration, identifiability, regression.
 
-A small campaign of each generator independent of :mod:`skidsim.synthetic` (``chips``: aggregate chips in binder,
+A small campaign of each generator independent of :mod:`skidsim.generators.default` (``chips``: aggregate chips in
+binder,
 PIARC/IFI friction; ``spectral``: spectral texture, Rado friction; :mod:`skidsim.generators`) is written to a
 temporary directory and run once per test session through ``snakemake`` with ``config/quick.yaml`` (quick solver
 preset, our calibration only) up to the calibration and regression outputs. The tests read only what the workflow

@@ -1,4 +1,4 @@
-"""Tests of the synthetic campaign generator (skidsim.synthetic): design, determinism, realism, files."""
+"""Tests of the synthetic campaign generator (skidsim.generators.default): design, determinism, realism, files."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 from scipy import fft as sfft
 
-from skidsim import synthetic as S
-from skidsim import truth as T
 from skidsim.errors import ConfigError
+from skidsim.generators import default as S
+from skidsim.generators import truth as T
 
 
 def small_cfg(rows=96, cols=128, **kw):

@@ -1,4 +1,4 @@
-"""The default despeckle rule ``local`` on LS-40-like scans built here, independent of skidsim.synthetic.
+"""The default despeckle rule ``local`` on LS-40-like scans built here, independent of skidsim.generators.default.
 
 The scans are what users bring: a 0.05 mm grid, heights stored as integer codes of 0.01 mm, aggregate stones
 (ellipsoidal caps, or flat-topped chips with vertical sides) on a smooth binder plane, so that on the flushed

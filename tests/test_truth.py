@@ -1,4 +1,4 @@
-"""Tests of the truth friction model (skidsim.truth): descriptors, base curve, each effect, DFT trace."""
+"""Tests of the truth friction model (skidsim.generators.truth): descriptors, base curve, each effect, DFT trace."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from skidsim import truth as T
 from skidsim.errors import ConfigError
 from skidsim.friction import ExponentialDecay
+from skidsim.generators import truth as T
 
 DESC = {"mpd_mm": 0.8, "micro_sq_mm": 0.025, "micro_sdq": 0.33, "ssk": -1.4}
 ROW = {"site": "E1-1", "section": "E1", "mix": "HMA", "temperature_c": 15.8, "test_order": 1}

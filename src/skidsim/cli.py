@@ -188,8 +188,8 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_synth(args) -> int:
-    from . import synthetic
     from .config import merged
+    from .generators import default as synthetic
     from .runlog import Progress
 
     if args.generator != "default":
@@ -370,7 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--generator",
         choices=["default", "chips", "spectral"],
         default="default",
-        help="default: skidsim.synthetic (the study-like campaign); chips, spectral: the independent "
+        help="default: skidsim.generators.default (the study-like campaign); chips, spectral: the independent "
         "generators of skidsim.generators (docs/synthetic-campaign.md)",
     )
     g.set_defaults(func=_cmd_synth)

@@ -1,7 +1,7 @@
 """Snakemake adapter: generate one synthetic site (scan X3P, DFT trace CSV, ground truth JSON)."""
 
-from skidsim import synthetic
 from skidsim.config import synthetic_config
+from skidsim.generators import default as synthetic
 from skidsim.runlog import setup_logging
 
 log = setup_logging(snakemake.log[0])

@@ -2,8 +2,8 @@
 
 from pathlib import Path
 
-from skidsim import synthetic
 from skidsim.config import synthetic_config
+from skidsim.generators import default as synthetic
 from skidsim.runlog import setup_logging
 
 log = setup_logging(snakemake.log[0])

@@ -1,4 +1,4 @@
-"""Campaign generators independent of :mod:`skidsim.synthetic`.
+"""Campaign generators independent of :mod:`skidsim.generators.default`.
 
 Two generators, each a texture model with a friction-speed model of the literature whose parameters are driven by
 texture measured on the generated surface (docs/synthetic-campaign.md, "Independent generators"):

@@ -2,7 +2,7 @@
 the files of the data contract (``sites.csv``, ``scans/<site>.x3p``, ``dft/<site>.csv``) plus one truth JSON per
 site in a directory beside the campaign.
 
-Nothing here comes from :mod:`skidsim.synthetic`; only the X3P writer (:func:`skidsim.x3p.write_x3p`) and the
+Nothing here comes from :mod:`skidsim.generators.default`; only the X3P writer (:func:`skidsim.x3p.write_x3p`) and the
 texture measures of :mod:`skidsim.texture` are shared, the first being the data contract, the second what the
 published relations are written in (MPD, micro Sq).
 

@@ -1,7 +1,7 @@
 """Instrument artefacts of a laser texture scanner, applied to a clean height map (mm) in this order: plane tilt,
 dropouts (NaN blobs), spikes, quantisation to integer height codes.
 
-Written for the independent generators; it shares no code with :mod:`skidsim.synthetic`. Every count is exact
+Written for the independent generators; it shares no code with :mod:`skidsim.generators.default`. Every count is exact
 (``round(fraction x points)``), so tests can check them.
 """
 

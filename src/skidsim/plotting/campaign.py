@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import truth as _truth
+from ..generators import truth as _truth
 from .style import COLORS, figure
 
 
@@ -14,7 +14,7 @@ def plot_synthetic_site(site_data, path: str | Path | None = None, *, max_pixels
     """Height map (mm; every k-th point so that the longer side has at most ``max_pixels``) and DFT trace
     (measured points, true curve, the base exponential-decay curve, each effect's step) of a generated site.
 
-    ``site_data`` is a :class:`skidsim.synthetic.SiteData`. Saves a PNG atomically when ``path`` is given;
+    ``site_data`` is a :class:`skidsim.generators.default.SiteData`. Saves a PNG atomically when ``path`` is given;
     returns the figure's axes' titles (for tests).
     """
     s = site_data.surface

@@ -43,7 +43,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 #: Default truth-model settings (the workflow's ``truth:`` config section).
 TRUTH_DEFAULTS: dict = {
@@ -300,7 +300,7 @@ def site_truth(descriptors: dict, row: dict, truth_cfg: dict | None = None) -> d
         "offset_mu": offset,
         "config": s,
     }
-    truth = {"model": "skidsim.truth/1", "descriptors": dict(descriptors), "base": base, "effects": effects}
+    truth = {"model": "skidsim.generators.truth/1", "descriptors": dict(descriptors), "base": base, "effects": effects}
     v = np.array(REPORT_SPEEDS_KMH)
     steps = mu_steps(v, truth)
     truth["curve"] = {"speeds_kmh": v.tolist(), **{k: np.round(val, 6).tolist() for k, val in steps.items()}}

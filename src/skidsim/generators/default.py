@@ -2,7 +2,8 @@
 
 When the user gives no campaign, the workflow designs the campaign (:func:`design_campaign`, cheap), generates
 each site (:func:`generate_site`: an LS-40-like texture scan and a DFT spin-down trace from the documented truth
-model of :mod:`skidsim.truth`), writes it (:func:`write_site`) and writes ``sites.csv`` (:func:`write_sites_csv`).
+model of :mod:`skidsim.generators.truth`), writes it (:func:`write_site`) and writes
+``sites.csv`` (:func:`write_sites_csv`).
 The rest of the pipeline treats the result exactly like measured data. See ``docs/synthetic-campaign.md``.
 
 Conventions that change numbers (all in ``docs/synthetic-campaign.md``):
@@ -44,10 +45,10 @@ import pandas as pd
 from scipy import fft as sfft
 from scipy import ndimage
 
+from ..atomic import atomic_path, write_text
+from ..errors import ConfigError
+from ..surface import Surface
 from . import truth as _truth
-from .atomic import atomic_path, write_text
-from .errors import ConfigError
-from .surface import Surface
 
 # ------------------------------------------------------------------------------------------------ defaults
 
@@ -371,7 +372,7 @@ class SiteData:
     """One generated site: the LS-40-like scan, the DFT trace and the ground truth.
 
     ``surface`` heights in mm (NaN dropouts, quantised); ``dft`` DataFrame ``speed_kmh`` (km/h, high to low,
-    the spin-down order), ``mu``; ``truth`` JSON-serialisable dict (see :mod:`skidsim.truth`).
+    the spin-down order), ``mu``; ``truth`` JSON-serialisable dict (see :mod:`skidsim.generators.truth`).
     ``clean`` is the noise-free surface before scanner artefacts (not written by :func:`write_site`).
     """
 
@@ -674,7 +675,7 @@ def generate_site(row, cfg: dict | None = None) -> SiteData:
     scan = _scanner(np.random.default_rng(ss[2]), heights, c, dx)
     meta = {
         "Date": f"{row.get('test_date', c['test_date'])}T{row.get('test_time', '12:00')}:00+00:00",
-        "Creator": "skidsim.synthetic",
+        "Creator": "skidsim.generators.default",
         "InstrumentManufacturer": "skidsim (simulated)",
         "InstrumentModel": "LS-40-like synthetic scanner",
         "ProbingSystemType": "NonContacting",
@@ -693,7 +694,7 @@ def generate_site(row, cfg: dict | None = None) -> SiteData:
 def write_site(site_data: SiteData, scan_path, dft_path, truth_path) -> None:
     """Write the scan (X3P, int16/int32 codes with 0.01 mm increment), the DFT CSV (``speed_kmh,mu``, spin-down
     order) and the truth JSON; each file is written to a temporary name and renamed."""
-    from .x3p import write_x3p
+    from ..x3p import write_x3p
 
     for p in (scan_path, dft_path, truth_path):
         Path(p).parent.mkdir(parents=True, exist_ok=True)
