@@ -57,17 +57,21 @@ lint: $(TEST_STAMP)
 	$(BIN)/snakefmt --check Snakefile workflow/rules/*.smk
 
 ## Run tests/test_slurm.py on this machine made a single-node SLURM cluster (cluster/single-node-slurm.sh, needs
-## root), without and then with accounting (slurmdbd); a cluster this target started is stopped at the end.
+## root), without and then with accounting (slurmdbd); both modes run even when the first fails, and a cluster this
+## target started is stopped when it ends: after a failure and after Ctrl-C too (trap on EXIT).
 ## Measured figures (wall time, what SLURM granted each job) are appended to SLURM_REPORT.
 SLURM_REPORT ?= benchmarks/out/slurm-report.jsonl
+SLURM_CLUSTER ?= cluster/single-node-slurm.sh
 test-slurm: setup-test
-	@set -e; mkdir -p $(dir $(SLURM_REPORT)); started=; cluster/single-node-slurm.sh status >/dev/null 2>&1 || started=1; \
-	for acct in 0 1; do \
-	  cluster/single-node-slurm.sh start $$([ $$acct = 1 ] && echo --accounting); \
+	@mkdir -p $(dir $(SLURM_REPORT)); \
+	if ! $(SLURM_CLUSTER) status >/dev/null 2>&1; then \
+	  trap '$(SLURM_CLUSTER) stop' EXIT; trap 'exit 130' INT; trap 'exit 143' TERM; \
+	fi; \
+	rc=0; for acct in 0 1; do \
+	  if ! $(SLURM_CLUSTER) start $$([ $$acct = 1 ] && echo --accounting); then rc=1; break; fi; \
 	  SKIDSIM_TEST_SLURM=1 SKIDSIM_SLURM_ACCOUNTING=$$acct SKIDSIM_SLURM_REPORT=$(abspath $(SLURM_REPORT)) \
-	    $(BIN)/python -m pytest -p no:xdist -q -s tests/test_slurm.py $(PYTEST_ARGS) || { rc=$$?; break; }; \
-	done; \
-	if [ -n "$$started" ]; then cluster/single-node-slurm.sh stop; fi; exit $${rc:-0}
+	    $(BIN)/python -m pytest -p no:xdist -q -s tests/test_slurm.py $(PYTEST_ARGS) || rc=$$?; \
+	done; exit $$rc
 
 dryrun: $(STAMP)
 	$(BIN)/snakemake -n --cores $(CORES)

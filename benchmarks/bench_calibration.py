@@ -117,7 +117,9 @@ def main():
         help="use skidsim.solver.simulate (campaign preset, RandomTexture pavements) instead of the "
         "surrogate; minutes per site",
     )
-    ap.add_argument("--model", choices=("ratio", "slip"), default="slip", help="calibrate_fast surrogate model")
+    ap.add_argument(
+        "--model", choices=("ratio", "slip"), default=JointOptions().model, help="calibrate_fast surrogate model"
+    )
     ap.add_argument("--cache-dir", default=None, help="FECache directory for --real-solver (default: a temp dir)")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)

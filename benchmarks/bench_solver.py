@@ -10,6 +10,11 @@ the full 114.3 mm clamped to the strip) with wall time, element-steps/s and the 
 ``--campaign-cost [--repeat N]`` times only the campaign preset (full slide, RandomTexture) at 20/40/60 km/h with
 each contact variant (``stick_limit``, ``penalty``, ``penalty`` + Rayleigh damping), the variants interleaved and
 each run repeated N times (median CPU time), and prints the cost per FE run relative to ``stick_limit``.
+``--batch [--repeat N] [--laws K]`` prints the old path (one ``simulate`` per run) and the new one (one
+``simulate_batch`` of the same runs) in the same process, interleaved: median CPU s per campaign FE run (full slide,
+RandomTexture) of a calibration batch (20/40/60 km/h, one law) and of a validation batch (K laws x 20..70 km/h),
+the ratio and the largest relative SN difference; then element-steps per CPU second of the 0.5 mm reference preset
+(8 mm slides at 20/40/60 km/h), old and new.
 Timings on a shared machine are disturbed by other processes: report them with that caveat.
 """
 
@@ -24,7 +29,7 @@ from threadpoolctl import threadpool_limits
 
 from skidsim.friction import ExponentialDecay
 from skidsim.slidermesh import SliderMesh
-from skidsim.solver import RandomTexture, SolverConfig, simulate
+from skidsim.solver import RandomTexture, SolverConfig, simulate, simulate_batch
 from skidsim.solver.kernel import NaiveKernel, StructuredKernel
 from skidsim.solver.material import RubberMaterial, element_stiffness
 from skidsim.solver.surfaces import to_heightfield
@@ -131,6 +136,54 @@ def bench_campaign_cost(repeat: int, pav) -> None:
         print(f"  {k:20s} mean per run {tot / 3:.2f} s ({100 * (tot / sum(base.values()) - 1):+.1f} % vs stick_limit)")
 
 
+#: Laws of the validation batch (the study's mesh-study law first).
+BATCH_LAWS = (LAW, ExponentialDecay(0.45, 0.3, 0.5), ExponentialDecay(0.6, 0.35, 0.3), ExponentialDecay(0.5, 0.4, 0.8))
+
+
+def _old_and_new(pav, speeds, laws, cfg, repeat: int):
+    """CPU s of the runs one by one and as one batch (interleaved ``repeat`` times), the results of both."""
+    old, new = [], []
+    for _ in range(repeat):
+        t0 = time.process_time()
+        singles = [simulate(pav, v, law, cfg) for v, law in zip(speeds, laws)]
+        old.append(time.process_time() - t0)
+        t0 = time.process_time()
+        batch = simulate_batch(pav, speeds, laws, cfg)
+        new.append(time.process_time() - t0)
+    return statistics.median(old), statistics.median(new), singles, batch
+
+
+def bench_batch(repeat: int, pav, n_laws: int) -> None:
+    """Old (one ``simulate`` per run) against new (``simulate_batch``): CPU s per campaign FE run, element-steps/s."""
+    cfg = SolverConfig.campaign(progress_every_s=1e9)
+    laws = BATCH_LAWS[:n_laws]
+    cases = {
+        "calibration batch, 20/40/60 km/h, one law": ([20.0, 40.0, 60.0], [LAW] * 3),
+        f"validation batch, {n_laws} laws x 20..70 km/h": (
+            [float(v) for _ in laws for v in (20, 30, 40, 50, 60, 70)],
+            [law for law in laws for _ in range(6)],
+        ),
+    }
+    print(f"campaign preset (full slide, RandomTexture), median CPU s of {repeat} interleaved repeats, one BLAS thread")
+    for label, (speeds, ls) in cases.items():
+        t_old, t_new, singles, batch = _old_and_new(pav, speeds, ls, cfg, repeat)
+        n = len(speeds)
+        d_sn = max(abs(b.sn / s.sn - 1.0) for s, b in zip(singles, batch))
+        print(
+            f"  {label}: {n} runs, {sum(r.n_steps for r in singles)} steps; old {t_old / n:.3f} s per run, "
+            f"new {t_new / n:.3f} s per run, ratio {t_old / t_new:.2f}x; max |SN_batch / SN_single - 1| {d_sn:.1e}"
+        )
+    ref = SolverConfig.reference(slide_length_mm=8.0, window_start_mm=3.0, progress_every_s=1e9)
+    t_old, t_new, singles, batch = _old_and_new(pav, [20.0, 40.0, 60.0], [LAW] * 3, ref, max(1, repeat // 2))
+    el_steps = singles[0].n_elements * sum(r.n_steps for r in singles)
+    d_sn = max(abs(b.sn / s.sn - 1.0) for s, b in zip(singles, batch))
+    print(
+        f"reference preset 0.5 mm ({singles[0].n_elements} elements), 8 mm slides at 20/40/60 km/h: old "
+        f"{el_steps / t_old / 1e6:.2f} M element-steps per CPU s, new {el_steps / t_new / 1e6:.2f} M "
+        f"(ratio {t_old / t_new:.2f}x); max |SN_batch / SN_single - 1| {d_sn:.1e}"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
@@ -141,8 +194,14 @@ def main() -> None:
     ap.add_argument("--element-mm", type=float, default=0.5, help="mm (with --pavement)")
     ap.add_argument("--campaign-cost", action="store_true", help="cost per FE run of each contact variant only")
     ap.add_argument("--repeat", type=int, default=3, help="runs per variant and speed (with --campaign-cost)")
+    ap.add_argument("--batch", action="store_true", help="old path (single runs) against simulate_batch only")
+    ap.add_argument("--laws", type=int, default=2, help="laws of the validation batch (with --batch, 1-4)")
     a = ap.parse_args()
     rep = 3 if a.quick else 7
+    if a.batch:
+        with threadpool_limits(1, user_api="blas"):
+            bench_batch(a.repeat, to_heightfield(RandomTexture(), 0.1e-3), a.laws)
+        return
     if a.campaign_cost:
         with threadpool_limits(1, user_api="blas"):
             bench_campaign_cost(a.repeat, to_heightfield(RandomTexture(), 0.1e-3))

@@ -2,9 +2,13 @@
 0.19.2 (test-only peer, GPL-3.0; imported here, never by the library) on the same parameter subset.
 
 Prints: wall time (median over --repeats) and peak RSS of the whole stage (despeckle, fill, form, bands, all
-parameters on raw/macro/micro, MPD), per-step times, and for the subset Sa Sq Sdr Sal Str Sk S10z on each band
-ours vs surfalize with the ratio. Targets: whole stage <= 15 s and <= 2.5 GB on 2 cores; subset >= 3x faster
-than surfalize.
+parameters on raw/macro/micro, MPD), per-step times, the CPU seconds of the workflow's ``texture_parameters``
+step (every parameter on raw, macro and micro, one thread; median over --repeats), and for the subset Sa Sq Sdr
+Sal Str Sk S10z on each band ours vs surfalize with the ratio (CPU seconds, one thread each). Targets: whole
+stage <= 15 s and <= 2.5 GB on 2 cores; subset >= 15x faster than surfalize (issue 36).
+
+The process first calls ``skidsim.texture.allocator.retain_freed_memory`` as the workflow's texture scripts do;
+``--default-malloc`` leaves glibc's defaults (2-4 s more system time per scan).
 
     .venv/bin/python benchmarks/bench_texture.py [--repeats 3] [--no-peer] [--workers 2] [--rows 2048 --cols 2448]
     .venv/bin/python benchmarks/bench_texture.py --despeckle-study docs/figures/texture-despeckle-flat-binder.png
@@ -45,6 +49,7 @@ from skidsim.texture import (
     remove_form,
     separate_bands,
 )
+from skidsim.texture.allocator import retain_freed_memory
 from skidsim.texture.features import feature_parameters
 from skidsim.texture.height import height_parameters
 from skidsim.texture.hybrid import sdr
@@ -224,6 +229,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-peer", action="store_true")
+    ap.add_argument("--default-malloc", action="store_true", help="leave glibc's malloc settings as they are")
     ap.add_argument("--bands", default="raw,macro,micro")
     ap.add_argument("--despeckle-study", metavar="PNG", help="only the flat-binder despeckle study (figure path)")
     ap.add_argument("--despeckle-synthetic", nargs="+", metavar="SITE", help="only the synthetic-site comparison")
@@ -234,7 +240,8 @@ def main() -> None:
     if a.despeckle_study:
         despeckle_study(a.despeckle_study)
         return
-    print(f"load average before: {os.getloadavg()}; cpus: {os.cpu_count()}")
+    retained = False if a.default_malloc else retain_freed_memory()
+    print(f"load average before: {os.getloadavg()}; cpus: {os.cpu_count()}; freed memory retained: {retained}")
     scan = synthetic_scan(a.rows, a.cols)
     base = rss_mb()
     opt = TextureOptions(workers=a.workers)
@@ -274,27 +281,38 @@ def main() -> None:
             areal_parameters(b[band], band, TextureOptions(workers=a.workers, groups=(g,)))
             parts.append(f"{g} {time.perf_counter() - t:.2f}")
         print(f"  {band}: " + ", ".join(parts) + " s")
+    step = []
+    one = TextureOptions(workers=1)
+    for _ in range(a.repeats):
+        c = time.process_time()
+        for band in ("raw", "macro", "micro"):
+            areal_parameters(b[band], band, one)
+        step.append(time.process_time() - c)
+    print(
+        f"texture_parameters step (raw, macro, micro; one thread): CPU median {statistics.median(step):.2f} s "
+        f"over {a.repeats} run(s) {[round(t, 2) for t in step]}"
+    )
     print(f"  load average after ours: {os.getloadavg()}")
     if a.no_peer:
         return
     t_ours = t_peer = 0.0
     for band in a.bands.split(","):
         s = b[band]
-        t = time.perf_counter()
-        o = ours_subset(s, a.workers)
-        dt_o = time.perf_counter() - t
-        t = time.perf_counter()
+        t = time.process_time()
+        o = ours_subset(s, 1)
+        dt_o = time.process_time() - t
+        t = time.process_time()
         p = peer_subset(s)
-        dt_p = time.perf_counter() - t
+        dt_p = time.process_time() - t
         t_ours += dt_o
         t_peer += dt_p
         rel = {k: (o[k] / p[k] - 1) if p[k] else np.nan for k in o}
         print(
-            f"  subset {band}: ours {dt_o:.2f} s, surfalize {dt_p:.2f} s, ratio {dt_p / dt_o:.1f}x; "
+            f"  subset {band} (CPU): ours {dt_o:.2f} s, surfalize {dt_p:.2f} s, ratio {dt_p / dt_o:.1f}x; "
             "relative differences " + ", ".join(f"{k} {v:+.2e}" for k, v in rel.items())
         )
     print(
-        f"subset Sa Sq Sdr Sal Str Sk S10z on {a.bands}: ours {t_ours:.2f} s, surfalize {t_peer:.2f} s, "
+        f"subset Sa Sq Sdr Sal Str Sk S10z on {a.bands} (CPU): ours {t_ours:.2f} s, surfalize {t_peer:.2f} s, "
         f"speed-up {t_peer / t_ours:.1f}x; peak RSS incl. surfalize {rss_mb():.0f} MB"
     )
     print(f"load average after: {os.getloadavg()}")

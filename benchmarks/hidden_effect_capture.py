@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from skidsim.atomic import atomic_path, write_json
+from skidsim.generators.campaign import COMMON
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEEDS_KMH = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
@@ -101,10 +102,10 @@ def main(argv=None) -> int:
     ap.add_argument("--generators", nargs="+", default=["chips", "spectral"], help="chips, spectral, default")
     ap.add_argument("--effects", nargs="+", default=["squeeze", "drainage"])
     ap.add_argument("--kappa", type=float, default=0.3)
-    ap.add_argument("--sites", type=int, default=36)
+    ap.add_argument("--sites", type=int, default=COMMON["n_sites"])
     ap.add_argument("--shape", type=int, nargs=2, default=[300, 600])
     ap.add_argument("--spacing-mm", type=float, default=0.2)
-    ap.add_argument("--seed", type=int, default=20261125)
+    ap.add_argument("--seed", type=int, default=COMMON["seed"])
     ap.add_argument("--cores", type=int, default=2)
     a = ap.parse_args(argv)
     from skidsim.regression import effect_capture

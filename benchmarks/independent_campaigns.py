@@ -45,6 +45,7 @@ import numpy as np
 import pandas as pd
 
 from skidsim.atomic import atomic_path, write_json
+from skidsim.generators.campaign import COMMON
 
 ROOT = Path(__file__).resolve().parents[1]
 BANDS = ("raw_", "macro_", "micro_", "profile_")
@@ -331,10 +332,10 @@ def main(argv=None) -> int:
     p.add_argument(
         "--generators", nargs="+", default=["chips", "spectral", "default"], choices=["chips", "spectral", "default"]
     )
-    p.add_argument("--sites", type=int, default=36)
-    p.add_argument("--shape", type=int, nargs=2, default=[2048, 2448], metavar=("ROWS", "COLS"))
+    p.add_argument("--sites", type=int, default=COMMON["n_sites"])
+    p.add_argument("--shape", type=int, nargs=2, default=list(COMMON["shape"]), metavar=("ROWS", "COLS"))
     p.add_argument("--spacing-mm", type=float, help="scan spacing (default: each generator's own)")
-    p.add_argument("--seed", type=int, default=20261125)
+    p.add_argument("--seed", type=int, default=COMMON["seed"])
     p.add_argument(
         "--config",
         nargs="+",

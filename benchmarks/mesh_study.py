@@ -2,25 +2,27 @@
 
 Usage::
 
-    python benchmarks/mesh_study.py OUT.csv OUT.png [--sizes 2 1.5 1 0.75 0.5 0.4 0.3] [--speeds 20 40 60]
-        [--slide-mm 114.3] [--window-mm 5] [--mass-scaling 1] [--pavement random|sinusoid|PATH.npz]
-        [--contact-gap vertical|normal] [--penalty-length-mm MM] [--friction-models stick_limit penalty]
-        [--slide-damping-model mass|rayleigh] [--slide-damping-per-s 3e4] [--loss-factor 0.2]
-        [--loss-band-hz 1000 100000] [--friction-stiffness-pa-per-m C_T]
+    python benchmarks/mesh_study.py OUT.csv OUT.png [--sizes MM ...] [--speeds KMH ...] [--slide-mm MM]
+        [--window-mm MM] [--mass-scaling S] [--pavement random|sinusoid|PATH.npz] [--contact-gap vertical|normal]
+        [--penalty-length-mm MM] [--friction-models stick_limit penalty] [--slide-damping-model mass|rayleigh]
+        [--slide-damping-per-s 1/S] [--loss-factor ETA] [--loss-band-hz LOW HIGH] [--friction-stiffness-pa-per-m C_T]
+
+Every default is the library's: the sizes and speeds of :class:`~skidsim.solver.mesh_study.MeshStudyOptions`
+(the workflow's ``mesh_study`` section), the contact, friction and damping of :class:`SolverConfig`; the study's
+Figure 9 went down to 0.3 mm (``--sizes 2 1.5 1 0.75 0.5 0.4 0.3``).
 
 Friction law: the study's mesh-study parameters mu_s 0.4, mu_k 0.35, alpha 0.6 s/m. Pavement: the seeded
 ``RandomTexture`` sampled at 0.1 mm into a Heightfield (default), ``sinusoid`` (analytic, for smoke tests) or a
 Heightfield ``.npz`` written by skidsim.reconstruct (``--pavement PATH``).
 Long-running at full settings (on site E1-1 the 0.3 mm mesh at 20 km/h over a 50 mm slide alone takes ~8 min of
 one core); the workflow may run it as an optional rule. Writes the CSV and the PNG atomically.
-``--contact-gap`` and ``--penalty-length-mm`` set the contact options of :class:`SolverConfig` (defaults: the
-vertical gap and the element-height penalty). ``--friction-models`` runs the whole study once per friction model
-(``friction_model`` of :class:`SolverConfig`; the CSV has a ``friction_model`` column, the PNG gets one file per
-model: ``OUT_<model>.png``); the damping options set the slide damping of every run. With exactly three element
-sizes the Richardson estimate of the converged SN per (model, speed) and the error of each size against it are
-printed and written next to the CSV as ``OUT_richardson.csv`` (columns friction_model, slide_damping_model,
-speed_kmh, sn_converged, order, monotone, sn_<h>mm, error_pct_<h>mm, change_pct_<coarse>_to_<fine>mm = SN change
-between consecutive sizes in %).
+``--contact-gap`` and ``--penalty-length-mm`` set the contact options of :class:`SolverConfig`.
+``--friction-models`` runs the whole study once per friction model (``friction_model`` of :class:`SolverConfig`; the
+CSV has a ``friction_model`` column, the PNG gets one file per model: ``OUT_<model>.png``); the damping options set
+the slide damping of every run. With exactly three element sizes the Richardson estimate of the converged SN per
+(model, speed) and the error of each size against it are printed and written next to the CSV as
+``OUT_richardson.csv`` (columns friction_model, slide_damping_model, speed_kmh, sn_converged, order, monotone,
+sn_<h>mm, error_pct_<h>mm, change_pct_<coarse>_to_<fine>mm = SN change between consecutive sizes in %).
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ import pandas as pd
 from skidsim.plotting.solver import plot_mesh_study
 from skidsim.runlog import write_csv
 from skidsim.solver import RandomTexture, SinusoidalSurface, SolverConfig
-from skidsim.solver.mesh_study import mesh_study, richardson
+from skidsim.solver.mesh_study import MeshStudyOptions, mesh_study, richardson
 from skidsim.solver.surfaces import to_heightfield
 
 
@@ -53,20 +55,21 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("csv")
     ap.add_argument("png")
-    ap.add_argument("--sizes", type=float, nargs="+", default=[2.0, 1.5, 1.0, 0.75, 0.5, 0.4, 0.3])
-    ap.add_argument("--speeds", type=float, nargs="+", default=[20.0, 40.0, 60.0])
-    ap.add_argument("--slide-mm", type=float, default=114.3)
-    ap.add_argument("--window-mm", type=float, default=5.0)
-    ap.add_argument("--mass-scaling", type=float, default=1.0)
+    cfg, study = SolverConfig(), MeshStudyOptions()  # every default below is the library's
+    ap.add_argument("--sizes", type=float, nargs="+", default=list(study.sizes_mm), help="element sizes, mm")
+    ap.add_argument("--speeds", type=float, nargs="+", default=list(study.speeds_kmh), help="km/h")
+    ap.add_argument("--slide-mm", type=float, default=cfg.slide_length_mm)
+    ap.add_argument("--window-mm", type=float, default=cfg.window_start_mm)
+    ap.add_argument("--mass-scaling", type=float, default=cfg.mass_scaling)
     ap.add_argument("--pavement", default="random")
-    ap.add_argument("--contact-gap", default="vertical", choices=["vertical", "normal"])
-    ap.add_argument("--penalty-length-mm", type=float, default=None)
-    ap.add_argument("--friction-models", nargs="+", default=["stick_limit"], choices=["stick_limit", "penalty"])
-    ap.add_argument("--slide-damping-model", default="mass", choices=["mass", "rayleigh"])
-    ap.add_argument("--slide-damping-per-s", type=float, default=3.0e4)
-    ap.add_argument("--loss-factor", type=float, default=0.2)
-    ap.add_argument("--loss-band-hz", type=float, nargs=2, default=[1.0e3, 1.0e5])
-    ap.add_argument("--friction-stiffness-pa-per-m", type=float, default=None, help="default: SolverConfig's")
+    ap.add_argument("--contact-gap", default=cfg.contact_gap, choices=["vertical", "normal"])
+    ap.add_argument("--penalty-length-mm", type=float, default=cfg.penalty_length_mm)
+    ap.add_argument("--friction-models", nargs="+", default=[cfg.friction_model], choices=["stick_limit", "penalty"])
+    ap.add_argument("--slide-damping-model", default=cfg.slide_damping_model, choices=["mass", "rayleigh"])
+    ap.add_argument("--slide-damping-per-s", type=float, default=cfg.slide_damping_per_s)
+    ap.add_argument("--loss-factor", type=float, default=cfg.loss_factor)
+    ap.add_argument("--loss-band-hz", type=float, nargs=2, default=list(cfg.loss_band_hz))
+    ap.add_argument("--friction-stiffness-pa-per-m", type=float, default=cfg.friction_stiffness_pa_per_m)
     a = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     pav = load_pavement(a.pavement)
@@ -81,9 +84,8 @@ def main(argv=None) -> int:
         slide_damping_per_s=a.slide_damping_per_s,
         loss_factor=a.loss_factor,
         loss_band_hz=tuple(a.loss_band_hz),
+        friction_stiffness_pa_per_m=a.friction_stiffness_pa_per_m,
     )
-    if a.friction_stiffness_pa_per_m is not None:
-        base = base.replace(friction_stiffness_pa_per_m=a.friction_stiffness_pa_per_m)
     csv = Path(a.csv)
     tables = []
     for model in a.friction_models:

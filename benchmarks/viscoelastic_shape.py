@@ -28,6 +28,7 @@ from skidsim.criticism.fe_extension import DEFAULT_PRONY
 from skidsim.friction import ExponentialDecay
 from skidsim.reconstruct import Heightfield
 from skidsim.solver import simulate
+from skidsim.solver.config import SolverOptions
 
 
 def main(argv=None) -> int:
@@ -35,7 +36,7 @@ def main(argv=None) -> int:
     ap.add_argument("pavement")
     ap.add_argument("calibration")
     ap.add_argument("--speeds", type=float, nargs="+", default=[20, 30, 40, 50, 60, 70])
-    ap.add_argument("--preset", default="campaign")
+    ap.add_argument("--preset", default=SolverOptions().preset, choices=["campaign", "reference", "quick"])
     ap.add_argument("--prony-g", type=float, nargs="+", default=list(DEFAULT_PRONY["prony_g"]))
     ap.add_argument("--prony-tau-s", type=float, nargs="+", default=list(DEFAULT_PRONY["prony_tau_s"]))
     ap.add_argument("--csv")

@@ -74,3 +74,16 @@ def test_simulate_prints_sn(campaign, tmp_path, capsys):
     assert 0.3 < sn < 0.6  # mu(60 km/h) = 0.4037; the texture moves SN by a few per cent
     tr = pd.read_parquet(trace)
     assert {"time_s", "position_mm", "tangential_n", "normal_n"} <= set(tr.columns)
+
+
+def test_progress_is_a_solver_progress_callback(caplog):
+    """The solver calls ``progress(step, n_steps, elapsed_s, eta_s)``; :class:`skidsim.runlog.Progress` takes that
+    call and reports the solver's step count, not the total it was built with."""
+    import logging
+
+    from skidsim.runlog import Progress
+
+    p = Progress(1, "simulate", logging.getLogger("skidsim.test"), every_s=0.0)
+    with caplog.at_level(logging.INFO, logger="skidsim.test"):
+        p(250, 1000, 1.5, 4.5)
+    assert "250/1000 (25 %)" in caplog.text

@@ -190,7 +190,12 @@ def test_texture_clusters_and_families():
         ("temperature_c", "between-site", "x_speed"),
         ("mpd_mm", "within-site", "x_speed"),
         ("mpd_mm", "between-site", "x_speed"),
+        # the texture model as a candidate (one unit: its members share the max-statistic)
+        ("texture_model[nonlinear in mpd_mm]", "between-site", "main"),
+        ("texture_model[texture PCs 1-3]", "between-site", "main"),
     }
+    tm = [c for c in causes if c.source == "texture_model"]
+    assert len({c.unit for c in tm}) == 1 and len({c.unit_p for c in tm}) == 1
     # a cluster is one unit: its members share the unit, its max-statistic p-value, and p_adjusted >= unit_p
     mac = [c for c in causes if c.variable in macro and c.level == "between-site" and c.kind == "main"]
     rep = max(mac, key=lambda c: c.statistic)

@@ -37,6 +37,7 @@ SECTIONS = {
     "calibration.identifiability": ("skidsim.calibration.options", "IdentifiabilityOptions"),
     "regression": ("skidsim.regression.options", "RegressionOptions"),
     "diagnosis": ("skidsim.criticism.options", "DiagnosisOptions"),
+    "predict": ("skidsim.prediction.options", "PredictOptions"),
 }
 
 #: Config entries that are no stage's options, with the reason.
@@ -200,3 +201,209 @@ def test_requirements_of_the_default_config_are_the_defaults():
 def test_a_bad_value_names_the_section_key_and_value(section, bad, message):
     with pytest.raises(ConfigError, match=re.escape(message)):
         _options_class(section).from_dict(bad)
+
+
+# --- The command lines: every option that mirrors a library option takes the library's default ---------------------
+
+BENCHMARKS = ROOT / "benchmarks"
+
+
+def _library_options() -> dict[str, list[tuple[str, object]]]:
+    """``{field name: [(owner, default), ...]}`` of every options class and generator config the command lines
+    mirror (top-level keys of the generator configs)."""
+    from skidsim.criticism.options import DiagnosisOptions
+    from skidsim.generators import default as default_generator
+    from skidsim.generators.campaign import COMMON
+    from skidsim.solver.config import SolverConfig
+    from skidsim.texture.mpd import MPDOptions
+
+    classes = [SolverConfig, MPDOptions, DiagnosisOptions]
+    classes += [_options_class(s) for s in SECTIONS]
+    out: dict[str, list[tuple[str, object]]] = {}
+    for cls in classes:
+        for f in dataclasses.fields(cls):
+            default = _field_default(f)
+            if default is not dataclasses.MISSING:
+                out.setdefault(f.name, []).append((cls.__name__, default))
+    for owner, cfg in (("generators.COMMON", COMMON), ("generators.default", default_generator.default_config())):
+        for key, value in cfg.items():
+            if not isinstance(value, dict):
+                out.setdefault(key, []).append((owner, value))
+    return out
+
+
+def _mirrors() -> dict[str, dict[str, object]]:
+    """Options whose name is not the library field's, or whose field name has several library defaults: per
+    command line, ``{dest: the library default}``. (Every other option named like a library field is compared with
+    that field automatically.)"""
+    from skidsim.criticism.fe_extension import DEFAULT_PRONY
+    from skidsim.generators.campaign import COMMON
+    from skidsim.reconstruct import MeshOptions
+    from skidsim.solver.config import SolverConfig, SolverOptions
+    from skidsim.solver.mesh_study import MeshStudyOptions
+    from skidsim.texture import TextureOptions
+
+    return {
+        "skidsim texture": {"despeckle": TextureOptions().despeckle_method},
+        "skidsim simulate": {
+            "preset": SolverOptions().preset,
+            "load_n": SolverConfig().load_n,
+            "length_mm": MeshOptions().length_mm,
+        },
+        "skidsim synth": {"seed": None},  # None: each generator's own seed
+        "bench_solver": {"slide_mm": SolverConfig().slide_length_mm},
+        "mesh_study": {
+            "sizes": list(MeshStudyOptions().sizes_mm),
+            "speeds": list(MeshStudyOptions().speeds_kmh),
+            "slide_mm": SolverConfig().slide_length_mm,
+            "window_mm": SolverConfig().window_start_mm,
+            "friction_models": [SolverConfig().friction_model],
+        },
+        "viscoelastic_shape": {
+            "prony_g": list(DEFAULT_PRONY["prony_g"]),
+            "prony_tau_s": list(DEFAULT_PRONY["prony_tau_s"]),
+        },
+        "independent_campaigns": {"seed": COMMON["seed"], "sites": COMMON["n_sites"]},
+        "hidden_effect_capture": {"seed": COMMON["seed"], "sites": COMMON["n_sites"]},
+    }
+
+
+#: Options named like a library field that are the command's own choice, not a mirror of it, with the reason.
+OWN_CHOICES = {
+    ("bench_calibration", "seed"): "the seed of the benchmark's own draws of synthetic sites, no library option",
+    ("fe_response_smoothness", "shape"): "small scans (300 x 600 points at 0.2 mm) keep one FE run to seconds",
+    ("fe_response_smoothness", "spacing_mm"): "small scans (300 x 600 points at 0.2 mm), as --shape",
+    ("hidden_effect_capture", "shape"): "small scans (300 x 600 points at 0.2 mm) keep the FE stage to minutes",
+    ("hidden_effect_capture", "spacing_mm"): "small scans (300 x 600 points at 0.2 mm), as --shape",
+    ("fe_response_smoothness", "speeds"): "the speeds the smoothness is probed at, no library option",
+    ("prediction_across_campaigns", "shape"): "small scans (100 x 600 points at 0.2 mm) keep four campaigns cheap",
+    ("prediction_across_campaigns", "spacing_mm"): "small scans (100 x 600 points at 0.2 mm), as --shape",
+    ("prediction_across_campaigns", "model"): "a regression model's name, not the calibration's surrogate model",
+    ("prediction_across_campaigns", "workers"): "worker processes of the benchmark, not scipy.fft threads",
+    ("diagnosis_rates", "n_boot"): "fewer bootstrap draws per diagnosis keep campaigns x kinds x seeds affordable",
+    ("bench_texture", "workers"): "the threads the benchmark times (the machine's 2 cores), a measured setting",
+}
+
+
+class _Parsed(Exception):
+    def __init__(self, parser):
+        self.parser = parser
+
+
+def _benchmark_parsers(monkeypatch) -> dict[str, object]:
+    """Each benchmark's parser, caught at its ``parse_args`` (nothing of the benchmark runs)."""
+    import argparse
+    import importlib.util
+    import inspect
+
+    def catch(self, *args, **kwargs):
+        raise _Parsed(self)
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", catch)
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    parsers = {}
+    for path in sorted(BENCHMARKS.glob("*.py")):
+        source = path.read_text(encoding="utf-8")
+        if "argparse" not in source or not re.search(r"^def main\(", source, re.M):
+            continue  # no command line (or one that runs on import): nothing to walk
+        spec = importlib.util.spec_from_file_location(f"_bench_{path.stem}", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        main = getattr(module, "main", None)
+        if main is None:
+            continue
+        try:
+            main([]) if inspect.signature(main).parameters else main()
+        except _Parsed as caught:
+            parsers[path.stem] = caught.parser
+    return parsers
+
+
+def _cli_parsers() -> dict[str, object]:
+    import argparse
+
+    from skidsim.cli import build_parser
+
+    out = {}
+    top = build_parser()
+    for action in top._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out[f"skidsim {name}"] = sub
+    return out
+
+
+def _drifts(parsers: dict[str, object]) -> tuple[list[str], int]:
+    library = _library_options()
+    mirrors = _mirrors()
+    drifts, checked = [], 0
+    for name, parser in sorted(parsers.items()):
+        for action in parser._actions:
+            dest = action.dest
+            if dest in ("help",) or (name, dest) in OWN_CHOICES:
+                continue
+            if dest in mirrors.get(name, {}):
+                expected = [("", mirrors[name][dest])]
+            elif dest in library:
+                expected = library[dest]
+            else:
+                continue
+            checked += 1
+            got = action.default
+            if got is None:  # the command reads the library's default itself
+                continue
+            values = {repr(_plain(v)) for _, v in expected}
+            if len(values) > 1:
+                drifts.append(f"{name} --{dest}: several library defaults {expected}; name the one it mirrors")
+            elif not _same(got, expected[0][1]):
+                owner = expected[0][0] or "the library"
+                drifts.append(f"{name} --{dest}: default {got!r}, {owner} has {expected[0][1]!r}")
+    return drifts, checked
+
+
+def test_benchmark_options_take_the_library_defaults(monkeypatch):
+    parsers = _benchmark_parsers(monkeypatch)
+    assert {"mesh_study", "bench_calibration", "independent_campaigns", "viscoelastic_shape"} <= set(parsers)
+    drifts, checked = _drifts(parsers)
+    assert checked >= 20
+    assert drifts == [], "benchmark defaults that differ from the library's:\n" + "\n".join(drifts)
+
+
+def test_cli_options_take_the_library_defaults():
+    parsers = _cli_parsers()
+    assert {"skidsim texture", "skidsim mpd", "skidsim simulate", "skidsim synth"} <= set(parsers)
+    drifts, checked = _drifts(parsers)
+    assert checked >= 10
+    assert drifts == [], "skidsim defaults that differ from the library's:\n" + "\n".join(drifts)
+
+
+def test_the_default_walk_catches_a_drift():
+    import argparse
+
+    p = argparse.ArgumentParser()
+    p.add_argument("--friction-model", default="stick_limit")
+    p.add_argument("--loss-factor", type=float, default=None)
+    p.add_argument("--slide-mm", type=float, default=100.0)
+    drifts, checked = _drifts({"mesh_study": p})
+    assert checked == 3
+    assert drifts == [
+        "mesh_study --friction_model: default 'stick_limit', SolverConfig has 'penalty'",
+        "mesh_study --slide_mm: default 100.0, the library has 114.3",
+    ]
+
+
+@pytest.mark.parametrize("generator", ["default", "chips"])
+def test_synth_without_seed_uses_the_generators_own_seed(tmp_path, generator):
+    import json
+
+    from skidsim.cli import main
+    from skidsim.generators import default as default_generator
+    from skidsim.generators.campaign import COMMON
+
+    out = tmp_path / "camp"
+    args = ["synth", str(out), "--generator", generator, "--sites", "1", "--shape", "32", "64"]
+    assert main([*args, "--spacing-mm", "0.2"]) == 0
+    truth = json.loads(next((tmp_path / "camp-truth").glob("*.json")).read_text())
+    seed = truth["seed"][0] if generator == "default" else truth["seed"]
+    assert seed == (default_generator.default_config()["seed"] if generator == "default" else COMMON["seed"])
+    assert seed in (20170117, 20261125)

@@ -166,7 +166,7 @@ def test_fe_smoothness_miss_is_measured_after_small_steps_against_the_whole_step
     from the batch before (alpha 0: mu = mu_s at every speed, so the step is |d mu_s|)."""
     from types import SimpleNamespace
 
-    from skidsim.calibration.identifiability import _fe_misses
+    from skidsim.calibration.identifiability.smoothness import fe_misses
 
     mu_s = [0.50, 0.60, 0.62, 0.63]  # steps: -, 0.10, 0.02, 0.01
     h = pd.DataFrame(
@@ -182,15 +182,15 @@ def test_fe_smoothness_miss_is_measured_after_small_steps_against_the_whole_step
             "sn_pred_whole": [0.45, 0.40, 0.60, 0.55, 0.525, 0.42, 0.59, 0.50],  # whole: 0.06 (large step), 0.005, 0.01
         }
     )
-    m = _fe_misses(SimpleNamespace(history=h, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.03)
+    m = fe_misses(SimpleNamespace(history=h, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.03)
     assert m["verify_all_max"] == pytest.approx(0.06)
     assert m["verify_corrected_max"] == pytest.approx(0.06)  # the large step's miss
     assert m["small_step_max"] == pytest.approx(0.01) and m["n_small_step"] == 2  # iterations 3 and 4
     assert m["miss_per_step_median"] == pytest.approx(np.median([0.06 / 0.1, 0.005 / 0.02, 0.01 / 0.01]))
-    tight = _fe_misses(SimpleNamespace(history=h, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.015)
+    tight = fe_misses(SimpleNamespace(history=h, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.015)
     assert tight["small_step_max"] == pytest.approx(0.01) and tight["n_small_step"] == 1
     old = h.drop(columns="sn_pred_whole")  # stored before the column: the surrogate used
-    m_old = _fe_misses(SimpleNamespace(history=old, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.03)
+    m_old = fe_misses(SimpleNamespace(history=old, method="ours"), None, None, (20.0, 60.0), small_step_mu=0.03)
     assert m_old["small_step_max"] == pytest.approx(0.04)
 
 

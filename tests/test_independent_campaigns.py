@@ -57,6 +57,7 @@ TARGETS = (
     "results/calibration/identifiability.csv",
     "results/calibration/parameters.parquet",
     "results/regression/prediction_skill.csv",
+    "results/prediction/model.json",
 )
 
 #: Measured on these campaigns: method ours' fit R^2 at the calibration / validation speeds (2026-11-27, make test
@@ -291,3 +292,35 @@ def test_texture_model_predicts_a_hidden_squeeze_at_unseen_sections(run, hidden)
     assert r["captured_share_between_sites"] > BETWEEN_SHARE_MIN[gen], r
     assert r["slope_between_sites"] > 0.15, r
     assert r["r2_with"] > CHOSEN_R2_MIN[gen] - 0.1, r
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# (d) the model file: skidsim predict runs the workflow's texture pipeline on a scan
+
+
+@pytest.mark.slow
+def test_skidsim_predict_on_a_campaign_scan_gives_the_workflow_model_on_the_workflow_texture(run, tmp_path):
+    """The model file the workflow wrote, applied by ``skidsim predict`` to two of the campaign's own scans, gives
+    the chosen model's map on the texture table the workflow computed from the same scans (so the texture pipeline
+    in the model file is the workflow's), and intervals that contain the point prediction."""
+    from skidsim import prediction, regression
+    from skidsim.cli import main
+
+    wd = run["workdir"]
+    model_path = wd / "results" / "prediction" / "model.json"
+    model = prediction.load_model(model_path)
+    wide_path = wd / "results" / "texture" / "campaign.parquet"
+    X = regression.assemble_design(pd.read_parquet(wide_path), campaign_file=wide_path).X
+    sites = pd.read_csv(wd / "campaign" / "sites.csv").set_index("site")
+    picked = list(X.index[:2])
+    scans = [str(wd / "campaign" / sites.loc[s, "scan"]) for s in picked]
+    out = tmp_path / "out.csv"
+    assert (
+        main(["predict", str(model_path), *scans, "-o", str(out), "--sites", str(wd / "campaign" / "sites.csv")]) == 0
+    )
+    got = pd.read_csv(out)
+    assert len(got) == len(picked) * len(model.chosen.map.targets)
+    expect = model.chosen.map.predict(X.loc[picked]).to_numpy().ravel()
+    assert np.max(np.abs(got["dft"].to_numpy() - expect)) < 1e-9
+    inside = got.dropna(subset=["dft_lo", "dft_hi"])
+    assert ((inside["dft_lo"] <= inside["dft"]) & (inside["dft"] <= inside["dft_hi"])).all()

@@ -1,8 +1,8 @@
 """Stop and resume: Ctrl-C (SIGINT) and ``kill -9`` during a run, then the README's command (``skidsim.launch``,
 behind ``make reproduce``) resumes without repeating a finished FE run, and the results equal an uninterrupted run's.
 
-Cost: 1 small site (60 x 120 mm at 0.2 mm), the quick solver preset, our calibration only; three short
-Snakemake runs (uninterrupted, interrupted, killed) and the resume.
+Cost: 1 small site (60 x 120 mm at 0.2 mm), the quick solver preset, our calibration only; four short
+Snakemake runs (uninterrupted, interrupted, wrapper killed, Snakemake killed) and the resume.
 """
 
 from __future__ import annotations
@@ -116,6 +116,30 @@ def start_and_stop_when(cmd, workdir: Path, condition, sig: int, group: bool, ti
     return p.returncode, out + err
 
 
+def processes_in(workdir: Path) -> list[int]:
+    """Pids of the processes whose working directory is ``workdir`` (Snakemake and its jobs; Linux /proc)."""
+    out, target = [], os.path.realpath(workdir)
+    for p in Path("/proc").iterdir():
+        try:
+            if p.name.isdigit() and os.path.realpath(p / "cwd") == target and _alive(int(p.name)):
+                out.append(int(p.name))
+        except OSError:
+            continue
+    return out
+
+
+def jobs_in(workdir: Path) -> list[int]:
+    """The running jobs of a Snakemake in ``workdir``: its script processes (``.snakemake/scripts/``)."""
+    out = []
+    for pid in processes_in(workdir):
+        try:
+            if b".snakemake/scripts/" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                out.append(pid)
+        except OSError:
+            continue
+    return out
+
+
 def calibration(workdir: Path, site: str) -> dict:
     def strip(o):
         if isinstance(o, dict):
@@ -148,7 +172,18 @@ def test_interrupt_then_kill9_then_resume(campaign, tmp_path):
     done_1, snap = fe_runs_logged(wd)
     assert 1 <= cache_rows(wd) < n_ref
 
-    # 2. kill -9 of a plain snakemake and its jobs (a crash) during the next FE runs: lock and incomplete marks
+    # 2. kill -9 of the wrapper alone (what a kill of `make reproduce`'s process group does) while a job runs:
+    #    Snakemake and its jobs stop with it, nothing keeps running in the background
+    rc, text = start_and_stop_when(launch_cmd(wd, campaign), wd, lambda: bool(jobs_in(wd)), signal.SIGKILL, group=False)
+    assert rc == -signal.SIGKILL
+    t0 = time.monotonic()
+    while processes_in(wd):  # communicate() returned: Snakemake and its jobs closed their output; all are gone
+        assert time.monotonic() - t0 < 60, f"left running after the wrapper's kill -9: {processes_in(wd)}"
+        time.sleep(0.1)
+    done_2b, snap = fe_runs_logged(wd, snap)
+    done_1 += done_2b
+
+    # 3. kill -9 of a plain snakemake and its jobs (a crash) during the next FE runs: lock and incomplete marks
     before = cache_rows(wd)
     rc, text = start_and_stop_when(
         launch_cmd(wd, campaign, wrapper=False), wd, lambda: cache_rows(wd) > before, signal.SIGKILL, group=True
@@ -158,7 +193,7 @@ def test_interrupt_then_kill9_then_resume(campaign, tmp_path):
     done_2, snap = fe_runs_logged(wd, snap)
     assert cache_rows(wd) < n_ref  # the run really was stopped before the end
 
-    # 3. the README's command resumes: no --unlock, no --rerun-incomplete from the user
+    # 4. the README's command resumes: no --unlock, no --rerun-incomplete from the user
     r = subprocess.run(launch_cmd(wd, campaign), env=ENV, cwd=wd, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, (r.stdout + r.stderr)[-4000:]
     assert "removing the lock" in r.stderr
@@ -171,7 +206,7 @@ def test_interrupt_then_kill9_then_resume(campaign, tmp_path):
 
 
 FAKE_SNAKEMAKE = r"""
-import pathlib, signal, sys, time
+import os, pathlib, signal, sys, time
 log = pathlib.Path(sys.argv[1])
 args = sys.argv[2:]
 with log.open("a") as fh:
@@ -185,7 +220,7 @@ def stop(signum, frame):
         fh.write(f"got {signal.Signals(signum).name}\n")
     sys.exit(130)
 signal.signal(signal.SIGINT, stop)
-pathlib.Path("started").write_text("1")
+pathlib.Path("started").write_text(str(os.getpid()))
 time.sleep(60)
 sys.exit(0)
 """
@@ -226,6 +261,33 @@ def test_launch_stops_snakemake_on_sigterm_and_sigint(tmp_path, sig, status):
     ]
     calls = (tmp_path / "calls.txt").read_text().splitlines()
     assert calls == ["--rerun-incomplete --cores 2", "got SIGINT"]  # Snakemake gets its orderly-stop signal once
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state != "Z"  # a zombie has ended; only its parent's wait is missing
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_snakemake_does_not_outlive_a_killed_launcher(tmp_path):
+    p = fake_launch(tmp_path, "--cores", "2")
+    t0 = time.monotonic()
+    while not (tmp_path / "started").exists() or not (tmp_path / "started").read_text():
+        assert p.poll() is None and time.monotonic() - t0 < 30
+        time.sleep(0.02)
+    snakemake_pid = int((tmp_path / "started").read_text())
+    assert _alive(snakemake_pid)
+    p.kill()  # kill -9 of the launcher: no handler runs in it
+    p.communicate(timeout=30)
+    t0 = time.monotonic()
+    while _alive(snakemake_pid):
+        assert time.monotonic() - t0 < 30, "Snakemake outlived the launcher"
+        time.sleep(0.05)
+    calls = (tmp_path / "calls.txt").read_text().splitlines()
+    assert calls == ["--rerun-incomplete --cores 2", "got SIGINT"]  # its orderly stop, as on Ctrl-C
 
 
 def test_launch_removes_only_a_stale_lock(tmp_path):

@@ -32,6 +32,7 @@ pytestmark = pytest.mark.skipif(
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_cluster import TINY  # noqa: E402  the 3-site campaign of the fake-cluster test, one definition
+from test_rule_resources import resource_table  # noqa: E402  one parser of docs/cluster.md's table
 
 #: JSON keys that hold wall-clock timings: they differ between any two runs.
 TIMING_KEYS = re.compile(r"(^|_)(wall|overhead|elapsed)(_|$)")  # wall_s, fe_wall_s, wall_s_run, overhead_s
@@ -262,12 +263,7 @@ def test_every_output_equals_the_local_run(slurm_run, local_run):
 
 def _resource_table() -> dict[str, tuple[int, int, int]]:
     """docs/cluster.md's table of what each SLURM job asks: job -> (CPUs, MB, minutes)."""
-    text = (ROOT / "docs" / "cluster.md").read_text()
-    block = text.split("<!-- resources-table -->")[1]
-    table = {}
-    for m in re.finditer(r"^\| `(\w+)`[^|]*\| (\d+) \| (\d+) \| (\d+) \|", block, flags=re.M):
-        table[m.group(1)] = tuple(int(x) for x in m.group(2, 3, 4))
-    return table
+    return resource_table()
 
 
 def test_slurm_granted_what_the_resources_table_says(slurm_run, slurm_cluster):

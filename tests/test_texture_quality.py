@@ -21,6 +21,8 @@ from skidsim.texture.quality import (
     check_quality,
     plane_slopes,
     quality_table,
+    relief_breach,
+    relief_mm,
     scan_quality,
     usable_length_mm,
 )
@@ -78,6 +80,8 @@ def test_scan_quality_counts_dropouts_replaced_points_and_spike_clusters():
 
 def _quality(**changes):
     plane = np.tile(0.1 * DX * np.arange(400), (80, 1))  # slope 0.1 along x: tilt atan(0.1) = 5.711 deg
+    # 1 mm of relief: a cosine along y, symmetric about the middle row (no slope along y)
+    plane += 0.5 * np.cos(2 * np.pi * (np.arange(80) - 39.5) * DX / 1.0)[:, None]
     q = scan_quality("C7", Surface(plane, DX, DX), np.zeros((80, 400), bool), 0.0, "none")
     return q if not changes else type(q)(**{**q.to_dict(), **changes})
 
@@ -188,3 +192,95 @@ def test_workflow_quality_table_warns_then_stops(tmp_path):
     out = r.stdout + r.stderr
     assert "2 of 2 sites beyond the limits: site 'E1-1': replaced_pct" in out
     assert "rule despeckle" not in out  # changing a limit re-ran scan_quality only
+
+
+# ------------------------------------------------------------------------------------ relief that is no road
+
+
+def test_relief_is_the_peak_to_peak_of_the_heights_about_their_plane():
+    """A sine of amplitude A on a tilted plane: the 0.5-99.5 % range of a sine is 2 A cos(0.005 pi)."""
+    y, x = np.mgrid[0:200, 0:2000] * DX
+    # 8 whole periods of a cosine symmetric about the middle: it does not bias the plane
+    h = 0.03 * x - 0.02 * y + 0.8 * np.cos(2 * np.pi * (x - 999.5 * DX) / 12.5)
+    assert relief_mm(Surface(h, DX, DX)) == pytest.approx(2 * 0.8 * np.cos(0.005 * np.pi), rel=1e-3)
+    h[:, :100] = h[:, -100:] = np.nan  # dropouts at both ends (symmetric: the plane stays unbiased)
+    h[5, 500] = 50.0  # one spike: not counted (0.5 % each side)
+    assert relief_mm(Surface(h, DX, DX)) == pytest.approx(2 * 0.8 * np.cos(0.005 * np.pi), rel=2e-3)
+    assert np.isnan(relief_mm(Surface(np.full((3, 3), np.nan), DX, DX)))
+
+
+def test_relief_limits_on_real_shaped_scans():
+    """LS-40-like scans (stones on a flat binder at one 0.01 mm code, chips, porous; the despeckle study's
+    builders) are pavements; the same scans in metres, in micrometres, or one code everywhere with speckle are
+    not."""
+    from test_texture_despeckle import CASES, DX_MM, flat_binder_scan, inject_spikes
+
+    opt = QualityOptions()
+    reliefs = []
+    for n, name in enumerate(["binder 67 %", "porous (negative skew)", "chips, vertical sides"]):
+        h = flat_binder_scan(seed=n, **CASES[name])
+        r = relief_mm(Surface(h, DX_MM, DX_MM))
+        reliefs.append(r)
+        assert relief_breach(r, opt) is None, name
+        assert "below the limit min_relief_mm 0.05 mm" in relief_breach(relief_mm(Surface(h / 1000, DX_MM, DX_MM)), opt)
+        assert "above the limit max_relief_mm 30 mm" in relief_breach(relief_mm(Surface(h * 1000, DX_MM, DX_MM)), opt)
+    assert min(reliefs) > 2.0 and max(reliefs) < 4.0  # measured 2026-11-28: 3.01, 2.73, 3.03 mm
+    one_code, _ = inject_spikes(np.full((100, 2048), 1.23), seed=1)  # speckle of 3-5 mm on one height
+    assert relief_mm(Surface(one_code, DX_MM, DX_MM)) < 0.002  # the spikes tilt the plane by a few um
+    q = scan_quality("F1", Surface(one_code, DX_MM, DX_MM), np.zeros(one_code.shape, bool), 0.01, "data")
+    found = check_quality(q, QualityOptions(max_tilt_deg=90, min_usable_length_mm=0))
+    assert len(found) == 1 and found[0].endswith(
+        " mm below the limit min_relief_mm 0.05 mm (no pavement is this flat: one height everywhere, "
+        "or heights in m read as mm)"
+    )
+    with pytest.raises(ConfigError, match="quality.max_relief_mm: expected a relief above min_relief_mm"):
+        QualityOptions(min_relief_mm=5.0, max_relief_mm=1.0)
+
+
+@pytest.fixture(scope="module")
+def small_campaign(tmp_path_factory) -> Path:
+    from skidsim.cli import main
+
+    out = tmp_path_factory.mktemp("relief") / "camp"
+    assert main(["synth", str(out), "--sites", "2", "--shape", "300", "600", "--spacing-mm", "0.2", "--seed", "5"]) == 0
+    return out
+
+
+def test_validate_refuses_or_flags_a_relief_that_cannot_be_a_road(small_campaign, tmp_path, capsys, caplog):
+    """`skidsim validate` (the check of the workflow's first rule): the campaign's own scans (LS-40-like: tilt,
+    dropouts, codes of 0.01 mm, speckle) pass; a grid scan of one height, or in metres, is refused with
+    quality.action stop and flagged (a WARNING, validation goes on) with the default action warn."""
+    import shutil
+
+    import yaml
+
+    from skidsim.cli import main
+    from skidsim.gridtext import write_grid_text
+    from skidsim.scans import read_scan
+
+    stop = tmp_path / "stop.yaml"
+    stop.write_text(yaml.safe_dump({"quality": {"action": "stop"}}))
+    assert main(["validate", str(small_campaign), "--configfile", str(stop)]) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    sites = (small_campaign / "sites.csv").read_text()
+    first = sites.splitlines()[1].split(",")[0]
+    scan = next(c for c in sites.splitlines()[1].split(",") if c.endswith(".x3p"))
+    real = read_scan(small_campaign / scan)
+    cases = {
+        "flat": np.where(np.isfinite(real.heights), 12.34, np.nan),
+        "metres": real.heights / 1000.0,
+    }
+    for name, heights in cases.items():
+        camp = tmp_path / name
+        shutil.copytree(small_campaign, camp)
+        grid = f"scans/{first}.csv"
+        write_grid_text(camp / grid, type(real)(heights, real.dx, real.dy, name=real.name))
+        (camp / "sites.csv").write_text(sites.replace(scan, grid))
+        assert main(["validate", str(camp), "--configfile", str(stop)]) == 2, name
+        err = capsys.readouterr().err
+        assert f"{grid}: column 'heights': expected a relief of a pavement surface, 0.05 to 30 mm" in err, err
+        assert "below the limit min_relief_mm 0.05 mm" in err and "quality.action: stop" in err
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="skidsim"):
+        assert main(["validate", str(tmp_path / "metres")]) == 0  # the default action: warn
+    assert any("SCAN RELIEF" in r.getMessage() and "relief_mm" in r.getMessage() for r in caplog.records)

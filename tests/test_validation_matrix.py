@@ -443,7 +443,7 @@ def test_traceback_only_when_asked(good, tmp_path, capsys, monkeypatch):
     ],
 )
 def test_inside_is_lexical(text, ok):
-    from skidsim.validate import inside
+    from skidsim.campaign import inside
 
     assert inside(Path("/data/camp"), text) is ok
 

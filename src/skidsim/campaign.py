@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -97,9 +98,17 @@ def _resolve(directory: Path, text: str) -> Path:
     return (p if p.is_absolute() else directory / p).resolve()
 
 
-def _outside(directory: Path, text: str) -> bool:
-    from skidsim.validate import inside
+def inside(directory: Path, text: str) -> bool:
+    """True when the path ``text`` of ``sites.csv`` (relative or absolute) lies inside ``directory``.
 
+    Lexical: ``..`` components are resolved, symbolic links are not followed (a link inside the campaign is the
+    user's choice)."""
+    p = Path(os.path.normpath(Path(directory) / Path(text).expanduser()))
+    d = Path(os.path.normpath(directory))
+    return p == d or d in p.parents
+
+
+def _outside(directory: Path, text: str) -> bool:
     return not inside(directory, text)
 
 
@@ -141,6 +150,49 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
     speeds = tuple(float(v) for v in np.atleast_1d(speeds_kmh))
     directory = Path(directory).expanduser().resolve()
     sites_csv = directory / SITES_FILE
+    header, records = _read_header(sites_csv)
+    col = {name: j for j, name in enumerate(header)}
+    metadata_columns = [c for c in header if c not in REQUIRED_COLUMNS]
+    errors: list[InputError] = []
+    rows, line_of, seen = [], [], {}
+    for line, fields in records[1:]:
+        if not any(f.strip() for f in fields):
+            continue
+        if len(fields) != len(header):
+            errors.append(
+                CampaignError(
+                    sites_csv, f"{len(header)} fields as in the header", row=line, got=f"{len(fields)} fields"
+                )
+            )
+            continue
+        rec = {name: fields[j].strip() for name, j in col.items()}
+        raw = dict(rec)  # as written, for messages
+        ok = _check_site_id(sites_csv, rec["site"], line, seen, errors)
+        if not rec["section"]:
+            errors.append(CampaignError(sites_csv, "a section name", row=line, column="section", got=""))
+        rec["temperature_c"] = _temperature(sites_csv, rec["temperature_c"], line, errors)
+        for kind in ("scan", "dft"):
+            rec[kind] = _file_path(sites_csv, directory, kind, rec[kind], line, allow_outside, errors)
+        rows.append((rec, ok, raw))
+        line_of.append(line)
+    if not rows and not errors:
+        errors.append(CampaignError(sites_csv, "at least one site row after the header", row=2, got="no rows"))
+    traces = _check_files(sites_csv, rows, line_of, speeds, check_scans, errors)
+    if errors:
+        raise _collected(sites_csv, errors)
+    return Campaign(
+        directory=directory,
+        sites=_sites_frame([rec for rec, _, _ in rows], header, metadata_columns),
+        metadata_columns=metadata_columns,
+        speeds_kmh=speeds,
+        traces=traces,
+        rows={rec["site"]: line for (rec, _, _), line in zip(rows, line_of)},
+    )
+
+
+def _read_header(sites_csv: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """The header of ``sites.csv`` (stripped names) and every record as ``(line, fields)``; raises one
+    :class:`CampaignError` listing every problem of the header."""
     if not sites_csv.is_file():
         raise CampaignError(sites_csv, f"a {SITES_FILE} file in the campaign directory", got="no such file")
     with open(sites_csv, newline="", encoding="utf-8-sig") as fh:
@@ -170,108 +222,93 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
         )
     if errors:
         raise _collected(sites_csv, errors)
-    col = {name: j for j, name in enumerate(header)}
-    metadata_columns = [c for c in header if c not in REQUIRED_COLUMNS]
+    return header, records
 
-    rows, line_of, seen = [], [], {}
-    for line, fields in records[1:]:
-        if not any(f.strip() for f in fields):
-            continue
-        if len(fields) != len(header):
-            errors.append(
-                CampaignError(
-                    sites_csv, f"{len(header)} fields as in the header", row=line, got=f"{len(fields)} fields"
-                )
-            )
-            continue
-        rec = {name: fields[j].strip() for name, j in col.items()}
-        raw = dict(rec)  # as written, for messages
-        ok = True
-        site = rec["site"]
-        if not site:
-            errors.append(CampaignError(sites_csv, "a site id", row=line, column="site", got=""))
-            ok = False
-        elif not SITE_ID_PATTERN.match(site):
-            errors.append(
-                CampaignError(
-                    sites_csv,
-                    "a site id of letters, digits, '_', '.', '-' starting with a "
-                    "letter or digit (used in file names and workflow wildcards)",
-                    row=line,
-                    column="site",
-                    got=site,
-                )
-            )
-            ok = False
-        elif site.lower() in seen:
-            errors.append(
-                CampaignError(
-                    sites_csv,
-                    "a unique site id (case-insensitive: ids become file names)",
-                    row=line,
-                    column="site",
-                    got=site,
-                    hint=f"already used in row {seen[site.lower()]}",
-                )
-            )
-            ok = False
-        else:
-            seen[site.lower()] = line
-        if not rec["section"]:
-            errors.append(CampaignError(sites_csv, "a section name", row=line, column="section", got=""))
-        t = rec["temperature_c"]
-        try:
-            tc = float(t)
-        except ValueError:
-            tc = math.nan
-            errors.append(CampaignError(sites_csv, "a number (degrees C)", row=line, column="temperature_c", got=t))
-        else:
-            if not math.isfinite(tc):
-                errors.append(
-                    CampaignError(sites_csv, "a finite number (degrees C)", row=line, column="temperature_c", got=t)
-                )
-            elif not (TEMPERATURE_RANGE_C[0] <= tc <= TEMPERATURE_RANGE_C[1]):
-                errors.append(
-                    CampaignError(
-                        sites_csv,
-                        f"a temperature between {TEMPERATURE_RANGE_C[0]:g} and {TEMPERATURE_RANGE_C[1]:g} degrees C",
-                        row=line,
-                        column="temperature_c",
-                        got=tc,
-                        hint="Fahrenheit or Kelvin?",
-                    )
-                )
-        rec["temperature_c"] = tc
-        for kind in ("scan", "dft"):
-            if not rec[kind]:
-                errors.append(CampaignError(sites_csv, f"a path to the {kind} file", row=line, column=kind, got=""))
-                rec[kind] = ""
-                continue
-            p = _resolve(directory, rec[kind])
-            if not allow_outside and _outside(directory, rec[kind]):
-                errors.append(
-                    CampaignError(
-                        sites_csv,
-                        f"a {kind} path inside the campaign directory {directory} "
-                        "(config ingest.allow_outside_campaign: true, or skidsim validate "
-                        "--allow-outside, accepts others)",
-                        row=line,
-                        column=kind,
-                        got=rec[kind],
-                    )
-                )
-            elif not p.is_file():
-                errors.append(
-                    CampaignError(
-                        sites_csv, f"an existing {kind} file", row=line, column=kind, got=rec[kind], hint=f"no file {p}"
-                    )
-                )
-            rec[kind] = str(p)
-        rows.append((rec, ok, raw))
-        line_of.append(line)
 
-    if not rows and not errors:
-        errors.append(CampaignError(sites_csv, "at least one site row after the header", row=2, got="no rows"))
+def _check_site_id(sites_csv: Path, site: str, line: int, seen: dict[str, int], errors: list) -> bool:
+    """True for a valid site id not used before (case-insensitive; recorded in ``seen``), else a problem appended."""
+    if not site:
+        errors.append(CampaignError(sites_csv, "a site id", row=line, column="site", got=""))
+        return False
+    if not SITE_ID_PATTERN.match(site):
+        errors.append(
+            CampaignError(
+                sites_csv,
+                "a site id of letters, digits, '_', '.', '-' starting with a "
+                "letter or digit (used in file names and workflow wildcards)",
+                row=line,
+                column="site",
+                got=site,
+            )
+        )
+        return False
+    if site.lower() in seen:
+        errors.append(
+            CampaignError(
+                sites_csv,
+                "a unique site id (case-insensitive: ids become file names)",
+                row=line,
+                column="site",
+                got=site,
+                hint=f"already used in row {seen[site.lower()]}",
+            )
+        )
+        return False
+    seen[site.lower()] = line
+    return True
+
+
+def _temperature(sites_csv: Path, t: str, line: int, errors: list) -> float:
+    """The ``temperature_c`` cell as a number (NaN when it is none; problems appended)."""
+    try:
+        tc = float(t)
+    except ValueError:
+        errors.append(CampaignError(sites_csv, "a number (degrees C)", row=line, column="temperature_c", got=t))
+        return math.nan
+    if not math.isfinite(tc):
+        errors.append(CampaignError(sites_csv, "a finite number (degrees C)", row=line, column="temperature_c", got=t))
+    elif not (TEMPERATURE_RANGE_C[0] <= tc <= TEMPERATURE_RANGE_C[1]):
+        errors.append(
+            CampaignError(
+                sites_csv,
+                f"a temperature between {TEMPERATURE_RANGE_C[0]:g} and {TEMPERATURE_RANGE_C[1]:g} degrees C",
+                row=line,
+                column="temperature_c",
+                got=tc,
+                hint="Fahrenheit or Kelvin?",
+            )
+        )
+    return tc
+
+
+def _file_path(sites_csv: Path, directory: Path, kind: str, text: str, line: int, allow_outside: bool, errors) -> str:
+    """The resolved path of the ``scan`` or ``dft`` cell ``text`` ("" when empty; problems appended)."""
+    if not text:
+        errors.append(CampaignError(sites_csv, f"a path to the {kind} file", row=line, column=kind, got=""))
+        return ""
+    p = _resolve(directory, text)
+    if not allow_outside and _outside(directory, text):
+        errors.append(
+            CampaignError(
+                sites_csv,
+                f"a {kind} path inside the campaign directory {directory} "
+                "(config ingest.allow_outside_campaign: true, or skidsim validate "
+                "--allow-outside, accepts others)",
+                row=line,
+                column=kind,
+                got=text,
+            )
+        )
+    elif not p.is_file():
+        errors.append(
+            CampaignError(sites_csv, f"an existing {kind} file", row=line, column=kind, got=text, hint=f"no file {p}")
+        )
+    return str(p)
+
+
+def _check_files(sites_csv: Path, rows, line_of, speeds, check_scans, errors: list) -> dict[str, DftTrace]:
+    """Each row's scan (at ``check_scans``) and DFT trace (read, covering ``speeds``); the traces of the rows with
+    a valid site id by site (problems appended)."""
     traces: dict[str, DftTrace] = {}
     for (rec, ok, raw), line in zip(rows, line_of):
         scan, dft = Path(rec["scan"]) if rec["scan"] else None, Path(rec["dft"]) if rec["dft"] else None
@@ -306,10 +343,13 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
                 continue
             if ok:
                 traces[rec["site"]] = tr
-    if errors:
-        raise _collected(sites_csv, errors)
+    return traces
 
-    sites = pd.DataFrame([rec for rec, _, _ in rows], columns=header)
+
+def _sites_frame(records: list[dict], header: list[str], metadata_columns: list[str]) -> pd.DataFrame:
+    """The site table: text columns as str, ``temperature_c`` float, a metadata column float when every non-empty
+    cell is a number (empty cells NaN), else text."""
+    sites = pd.DataFrame(records, columns=header)
     for c in ("site", "section", "scan", "dft"):
         sites[c] = sites[c].astype(object).astype(str)
     sites["temperature_c"] = sites["temperature_c"].astype(float)
@@ -321,11 +361,4 @@ def load_campaign(directory, speeds_kmh=DEFAULT_SPEEDS_KMH, check_scans="header"
             sites[c] = pd.to_numeric(vals.where(vals != "", None), errors="coerce").astype(float)
         else:
             sites[c] = vals.astype(object)
-    return Campaign(
-        directory=directory,
-        sites=sites,
-        metadata_columns=metadata_columns,
-        speeds_kmh=speeds,
-        traces=traces,
-        rows={rec["site"]: line for (rec, _, _), line in zip(rows, line_of)},
-    )
+    return sites

@@ -6,6 +6,8 @@ skidsim mpd PROFILE [-o SEGMENTS.csv]         mean profile depth (ISO 13473-1) o
 skidsim simulate SCAN --speed 40 --mu-s .. --mu-k .. --alpha ..   one FE simulation: SN, trace, VTU
 skidsim synth OUT_DIR [--sites N] [--generator default|chips|spectral]
                                               write a synthetic campaign (scans, DFT, sites.csv, truth)
+skidsim predict MODEL SCAN [SCAN ...] [-o OUT.csv] [--level 0.9] [--jobs N]
+                                              DFT at 20-70 km/h, F60 and Sp of scans without DFT, with intervals
 """
 
 from __future__ import annotations
@@ -95,18 +97,30 @@ def _fmt_mm(v: float) -> str:
 
 
 def _cmd_mpd(args) -> int:
-    from .profiles import read_profile
-    from .texture.mpd import MPDOptions, profile_segments, summarise
+    from .profiles import ProfileFormatError, read_profile
+    from .texture.mpd import MPDOptions, SpacingError, evaluation_lengths, profile_segments, summarise
 
-    prof = read_profile(args.profile, distance_col=args.distance_col, height_col=args.height_col)
+    prof = read_profile(
+        args.profile,
+        distance_col=args.distance_col,
+        height_col=args.height_col,
+        distance_unit=args.distance_unit,
+        height_unit=args.height_unit,
+    )
     opts = MPDOptions(
         segment_mm=args.segment_mm,
+        resample_mm=args.resample_mm,
         spike_alpha=args.spike_alpha,
         detect_plates=args.detect_plates,
         plate_threshold_mm=args.plate_threshold_mm,
         max_dropout_pct=args.max_dropout_pct,
+        evaluation_length_m=args.evaluation_length_m,
     )
-    segs = profile_segments(prof.height_mm, prof.distance_mm, opts)
+    try:
+        segs = profile_segments(prof.height_mm, prof.distance_mm, opts)
+    except SpacingError as e:
+        unit = f"distances read in {prof.units[0]} ({prof.unit_sources[0]})"
+        raise ProfileFormatError(prof.path, f"{e.expected}; {unit}", column=prof.columns[0], got=e.got) from None
     res = summarise(
         segs,
         name=Path(args.profile).name,
@@ -124,9 +138,11 @@ def _cmd_mpd(args) -> int:
         for lab, v in (("starts at", segs.trim_start_mm[0]), ("ends at", segs.trim_end_mm[0]))
         if v == v
     ]
+    units = ", ".join(f"{u} ({src})" for u, src in zip(prof.units, prof.unit_sources))
     print(
         f"{prof.path}: {len(prof.distance_mm)} samples, {prof.distance_mm[0]:g} .. {prof.distance_mm[-1]:g} mm, "
-        f"{prof.n_dropouts} dropouts; columns {prof.columns[0]!r}, {prof.columns[1]!r}"
+        f"{prof.n_dropouts} dropouts; columns {prof.columns[0]!r}, {prof.columns[1]!r} in {units}; "
+        f"resampled at {segs.spacing_mm:g} mm"
         + (f"; plates detected: profile {', '.join(trim)}" if trim else "")
         + (
             "; distances below 0 belong to no segment (segments are (0, L], (L, 2L], ...)"
@@ -134,6 +150,12 @@ def _cmd_mpd(args) -> int:
             else ""
         )
     )
+    if args.evaluation_length_m is not None and res.n_segments:
+        for r in evaluation_lengths(segs).itertuples():
+            print(
+                f"  evaluation length to {r.end_m:g} m: MPD {_fmt_mm(r.mpd_mm)} mm, SD {_fmt_mm(r.sd_mm)} mm, "
+                f"{r.n_valid} of {r.n_segments} segments valid{'' if r.is_valid else ' (fewer than half: invalid)'}"
+            )
     if args.output:
         frame = segs.to_frame().drop(columns="profile")
         frame.insert(0, "segment", range(1, len(frame) + 1))
@@ -195,7 +217,7 @@ def _cmd_synth(args) -> int:
     if args.generator != "default":
         return _cmd_synth_independent(args)
     cfg = synthetic.default_config()
-    over = {"seed": args.seed}
+    over = {} if args.seed is None else {"seed": args.seed}
     if args.shape:
         over["shape"] = list(args.shape)
     if args.spacing_mm:
@@ -227,7 +249,7 @@ def _cmd_synth_independent(args) -> int:
     from . import generators
     from .runlog import Progress
 
-    over = {"seed": args.seed}
+    over = {} if args.seed is None else {"seed": args.seed}
     if args.sites:
         over["n_sites"] = args.sites
     if args.shape:
@@ -243,7 +265,110 @@ def _cmd_synth_independent(args) -> int:
     return 0
 
 
+def _cmd_predict(args) -> int:
+    """``predict``: the model file applied to scans (docs/prediction.md): a summary line per scan, the tables to
+    ``-o`` (DFT per scan and speed) and ``<OUT stem>_ifi.csv`` (F60, Sp per scan)."""
+    from .prediction import load_model, summary_lines
+    from .prediction.run import predict_scans, scan_paths, write_predictions
+    from .runlog import Progress
+
+    model = load_model(args.model)
+    n = len(scan_paths(args.scans))
+    prog = Progress(n, "scans", log, every_s=10.0) if n > 1 else None
+    dft, ifi = predict_scans(
+        model,
+        args.scans,
+        args.level,
+        jobs=args.jobs,
+        temperature_c=args.temperature_c,
+        sites_csv=args.sites,
+        progress=prog,
+    )
+    for line in summary_lines(dft, ifi):
+        print(line)
+    if args.out:
+        for path in write_predictions(dft, ifi, args.out):
+            print(f"wrote {path}")
+    flagged = ifi[ifi["status"] != "ok"]
+    if len(flagged):
+        log.warning("%d of %d scans flagged or refused (column status, reason)", len(flagged), len(ifi))
+    return 0
+
+
+def _add_mpd_parser(sub, mpd) -> None:
+    """The ``mpd`` subcommand; its defaults are those of :class:`~skidsim.texture.mpd.MPDOptions` ``mpd``."""
+    m = sub.add_parser(
+        "mpd",
+        help="mean profile depth (ISO 13473-1:2019, as captif-slp) of a text line profile",
+        description="MPD of a line profile: a text file with a header block of any length and "
+        "delimited columns of distance and height (in the units the column names state, else the "
+        "--distance-unit / --height-unit given, else mm; NaN, empty or non-numeric heights are "
+        "dropouts). Prints 'MPD <value> mm, SD <value> mm, <n> valid segments, <n> invalid "
+        "segments'.",
+    )
+    m.add_argument("profile", help="text profile (.csv, .txt, .dat; tab, ';', ',' or space delimited)")
+    m.add_argument("--distance-col", help="distance column: name or 0-based index (default: by name, else 0)")
+    m.add_argument("--height-col", help="height column: name or 0-based index (default: by name, else 1)")
+    m.add_argument(
+        "--distance-unit",
+        help="unit of the distances when the column name states none: m, mm, um, ... (default: the name's, else mm)",
+    )
+    m.add_argument(
+        "--height-unit",
+        help="unit of the heights when the column name states none: m, mm, um, ... (default: the name's, else mm)",
+    )
+    m.add_argument(
+        "--resample-mm",
+        type=float,
+        default=mpd.resample_mm,
+        help="resampled spacing in mm, at most 1.0 (default: 0.5 mm, or the profile's own spacing up to 1.0 mm)",
+    )
+    m.add_argument(
+        "--evaluation-length-m",
+        type=float,
+        default=mpd.evaluation_length_m,
+        help="evaluation length in m of a network run (captif-slp's option): 174.2 mm high-pass, no slope "
+        "removal per segment, one MPD per length",
+    )
+    m.add_argument(
+        "--spike-alpha",
+        type=float,
+        default=mpd.spike_alpha,
+        help="spike threshold factor: a step >= alpha x the resampled spacing is a spike (ISO 13473-1; "
+        "default %(default)s)",
+    )
+    m.add_argument(
+        "--detect-plates",
+        action="store_true",
+        help="exclude reference plates at the ends of the run (heights above --plate-threshold-mm)",
+    )
+    m.add_argument(
+        "--plate-threshold-mm",
+        type=float,
+        default=mpd.plate_threshold_mm,
+        help="plate height threshold in mm (default %(default)s)",
+    )
+    m.add_argument(
+        "--segment-mm", type=float, default=mpd.segment_mm, help="segment length in mm (default %(default)s)"
+    )
+    m.add_argument(
+        "--max-dropout-pct",
+        type=float,
+        default=mpd.max_dropout_pct,
+        help="a segment with more dropouts than this %% is invalid (default %(default)s)",
+    )
+    m.add_argument("-o", "--output", help="write each segment (start, end, MSD, dropouts, spikes, valid) to CSV")
+    m.set_defaults(func=_cmd_mpd)
+
+
 def build_parser() -> argparse.ArgumentParser:
+    # One home per default: options that mirror a library option take its default (tests/test_defaults.py).
+    from .reconstruct import MeshOptions
+    from .solver.config import SolverOptions
+    from .texture.mpd import MPDOptions
+    from .texture.parameters import TextureOptions
+
+    tex, mpd, mesh, solver = TextureOptions(), MPDOptions(), MeshOptions(), SolverOptions()
     p = argparse.ArgumentParser(
         prog="skidsim",
         description=__doc__.split("\n\n")[0],
@@ -292,7 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--despeckle",
         choices=["local", "mad", "tukey", "study"],
-        default="local",
+        default=tex.despeckle_method,
         help="despeckle rule (default local: isolated 2-D outliers, right on flat-binder scans; mad and "
         "tukey: per-row fences; study = the literal limiting filter)",
     )
@@ -300,45 +425,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--macro-mm",
         type=float,
         nargs=2,
-        default=[0.5, 50.0],
+        default=list(tex.macro_mm),
         metavar=("LOW", "HIGH"),
-        help="macrotexture wavelength band in mm (default 0.5 50)",
+        help="macrotexture wavelength band in mm (default %(default)s)",
     )
     t.add_argument("-q", "--quiet", action="store_true", help="do not print the table")
     t.set_defaults(func=_cmd_texture)
 
-    m = sub.add_parser(
-        "mpd",
-        help="mean profile depth (ISO 13473-1:2019, as captif-slp) of a text line profile",
-        description="MPD of a line profile: a text file with a header block of any length and "
-        "delimited columns of distance and height in mm (NaN, empty or non-numeric heights are "
-        "dropouts). Prints 'MPD <value> mm, SD <value> mm, <n> valid segments, <n> invalid "
-        "segments'.",
-    )
-    m.add_argument("profile", help="text profile (.csv, .txt, .dat; tab, ';', ',' or space delimited)")
-    m.add_argument("--distance-col", help="distance column: name or 0-based index (default: by name, else 0)")
-    m.add_argument("--height-col", help="height column: name or 0-based index (default: by name, else 1)")
-    m.add_argument(
-        "--spike-alpha",
-        type=float,
-        default=3.0,
-        help="spike threshold factor: a step >= alpha x 0.5 mm is a spike (ISO 13473-1; default 3)",
-    )
-    m.add_argument(
-        "--detect-plates",
-        action="store_true",
-        help="exclude reference plates at the ends of the run (heights above --plate-threshold-mm)",
-    )
-    m.add_argument("--plate-threshold-mm", type=float, default=30.0, help="plate height threshold in mm (default 30)")
-    m.add_argument("--segment-mm", type=float, default=100.0, help="segment length in mm (default 100)")
-    m.add_argument(
-        "--max-dropout-pct",
-        type=float,
-        default=10.0,
-        help="a segment with more dropouts than this %% is invalid (default 10)",
-    )
-    m.add_argument("-o", "--output", help="write each segment (start, end, MSD, dropouts, spikes, valid) to CSV")
-    m.set_defaults(func=_cmd_mpd)
+    _add_mpd_parser(sub, mpd)
 
     s = sub.add_parser("simulate", help="one FE simulation of the DFT slider on a scan")
     s.add_argument("scan")
@@ -346,14 +440,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--mu-s", type=float, required=True, help="static friction coefficient")
     s.add_argument("--mu-k", type=float, required=True, help="kinetic friction coefficient")
     s.add_argument("--alpha", type=float, required=True, help="decay coefficient in s/m")
-    s.add_argument("--preset", choices=["campaign", "reference", "quick"], default="campaign")
-    s.add_argument("--load-n", type=float, default=11.8, help="normal load in N (default 11.8)")
-    s.add_argument("--resolution-mm", type=float, default=0.5, help="pavement FE resolution in mm")
+    s.add_argument("--preset", choices=["campaign", "reference", "quick"], default=solver.preset)
+    s.add_argument("--load-n", type=float, default=solver.load_n, help="normal load in N (default %(default)s)")
+    s.add_argument("--resolution-mm", type=float, default=mesh.resolution_mm, help="pavement FE resolution in mm")
     s.add_argument(
         "--length-mm",
         type=_strip_length,
-        default=114.3,
-        help="pavement strip length in mm (default 114.3), or auto: the scan's length up to 114.3 mm",
+        default=mesh.length_mm,
+        help="pavement strip length in mm (default %(default)s), or auto: the scan's length up to %(default)s mm",
     )
     s.add_argument("--trace", help="write the force trace to this parquet file")
     s.add_argument("--vtu", help="write a decimated VTU series of the slider into this directory")
@@ -362,7 +456,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = sub.add_parser("synth", help="generate a synthetic campaign directory")
     g.add_argument("out_dir")
     g.add_argument("--sites", type=int, help="only the first N sites of the design")
-    g.add_argument("--seed", type=int, default=20170117)
+    g.add_argument("--seed", type=int, help="random seed (default: the generator's own)")
     g.add_argument("--shape", type=int, nargs=2, metavar=("ROWS", "COLS"), help="scan size in points")
     g.add_argument("--spacing-mm", type=float, help="lateral spacing in mm")
     g.add_argument("--truth-dir", help="where the ground truth goes (default: OUT_DIR-truth beside it)")
@@ -374,6 +468,16 @@ def build_parser() -> argparse.ArgumentParser:
         "generators of skidsim.generators (docs/synthetic-campaign.md)",
     )
     g.set_defaults(func=_cmd_synth)
+
+    r = sub.add_parser("predict", help="friction of scans without DFT from a model file (docs/prediction.md)")
+    r.add_argument("model", help="model file (results/prediction/model.json)")
+    r.add_argument("scans", nargs="+", help="scan files (X3P or grid text) or directories of them")
+    r.add_argument("-o", "--out", help="DFT table (CSV, one row per scan and speed); the IFI goes to <stem>_ifi.csv")
+    r.add_argument("--level", type=float, default=0.9, help="nominal coverage of the intervals (default 0.9)")
+    r.add_argument("--jobs", type=int, default=1, help="scans processed at a time (default 1)")
+    r.add_argument("--temperature-c", type=float, help="temperature (deg C) of every scan, for a model that uses it")
+    r.add_argument("--sites", help="CSV with site (= scan file stem) and temperature_c (deg C) per scan")
+    r.set_defaults(func=_cmd_predict)
     return p
 
 

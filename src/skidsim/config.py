@@ -5,11 +5,11 @@ that need it, since the workflow imports this module when it parses the Snakefil
 * :func:`synthetic_config`: the generator's configuration from the ``synthetic`` and ``truth`` sections.
 * :func:`site_table`: the site list (site, section, scan, dft) known when the workflow is parsed.
 * :func:`plan_check`: the config and campaign check that stops a bad plan before anything runs.
-* :func:`regression_split`: the seeded train/test split of the ``regression`` section.
 * :func:`solver_config`: the :class:`~skidsim.solver.SolverConfig` of the ``solver`` section.
 * :func:`file_digest`, :func:`config_digest`: short SHA-256 digests (FE cache keys).
 
-The calibration sections have their options classes in :mod:`skidsim.calibration.options`.
+The calibration sections have their options classes in :mod:`skidsim.calibration.options`; the regression
+section's train/test split is :func:`skidsim.regression.splits.regression_split`.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def merged(defaults: dict, override: dict | None) -> dict:
 
 def synthetic_config(config: dict) -> dict:
     """The generator's configuration: its defaults overridden by ``config['synthetic']`` and ``config['truth']``."""
-    from . import synthetic
+    from .generators import default as synthetic
 
     cfg = merged(synthetic.default_config(), config.get("synthetic") or {})
     if "truth" in config:
@@ -54,7 +54,7 @@ def site_table(config: dict, campaign_dir: str | Path | None) -> pd.DataFrame:
     import pandas as pd  # imported on use: most workflow steps never need it
 
     if campaign_dir is None:
-        from . import synthetic
+        from .generators import default as synthetic
 
         design = synthetic.design_campaign(synthetic_config(config))
         return pd.DataFrame(
@@ -94,27 +94,6 @@ def plan_check(config: dict, campaign_dir: str | Path | None, stream=None) -> No
         print("skidsim: nothing was run; fix the above and run the same command again", file=out)
         out.flush()
         raise SystemExit(1)
-
-
-def regression_split(cfg: dict, sites: pd.DataFrame) -> tuple[list[str], list[str]]:
-    """The seeded train/test split of the regression stage, known at parse time.
-
-    ``cfg['n_test']`` sites are held out (the study: 9 of 36); for smaller campaigns the same share,
-    ``round(n * n_test / 36)``, at least 1 when there are 4 sites or more.
-    """
-    from .regression import split_sites
-
-    n = len(sites)
-    n_test = int(cfg.get("n_test", 9))
-    if n != 36:
-        n_test = int(round(n * n_test / 36.0))
-        n_test = max(1, n_test) if n >= 4 else 0
-    if n_test == 0:
-        return list(sites["site"]), []
-    train, test = split_sites(
-        sites, n_train=n - n_test, seed=int(cfg["seed"]), grouped_by=cfg.get("grouped_by") or None
-    )
-    return [str(s) for s in train], [str(s) for s in test]
 
 
 #: The quick preset (config/quick.yaml): the campaign preset on a 2 mm slider mesh with a 40 mm slide.

@@ -396,6 +396,51 @@ def write_inp(
     (U, with the holder's in it) and the contact stresses (``*CONTACT PRINT``: CSTR); read them with
     :func:`parse_push_history`.
     """
+    slide_distance_m, stick_slope_pa_per_m = _checked_inp_options(
+        step, dialect, holder, contact, load_n, element_type, push_increments, slide_distance_m, stick_slope_pa_per_m
+    )
+    mat = dict(RUBBER, **(material or {}))
+    hf = heightfield
+    v_ms = float(kmh_to_ms(speed_kmh))
+    if step == "dynamic":
+        L = slider.size_m[0]
+        slide_distance_m, center_xy_m = _dynamic_slide(hf, L, v_ms, speed_kmh, slide_distance_m, center_xy_m)
+    off = slider_placement(slider, hf, center_xy_m, overclosure_m)
+    kpen = float(penalty_pa_per_m) if penalty_pa_per_m else 10.0 * mat["E_pa"] / slider.hz
+    m = _inp_numbering(slider, hf, off)
+    interaction, mu_eq, notes = _inp_interaction(step, dialect, contact, law, v_ms, kpen, stick_slope_pa_per_m)
+    text = (
+        _inp_model(m, slider, hf, off, step, dialect, element_type, title, mat)
+        + interaction
+        + _inp_steps(m, step, dialect, holder, load_n, slide_distance_m, v_ms, push_increments)
+    )
+    path = Path(path)
+    write_text(path, text)
+    return InpDeck(
+        path,
+        step,
+        dialect,
+        holder,
+        m["s_ids"],
+        m["p_ids"],
+        m["ref"],
+        off,
+        slider.bottom_nodes() + 1,
+        m["trib"],
+        float(load_n),
+        kpen,
+        mu_eq,
+        v_ms if step == "dynamic" else None,
+        slide_distance_m,
+        notes,
+    )
+
+
+def _checked_inp_options(
+    step, dialect, holder, contact, load_n, element_type, push_increments, slide_distance_m, stick_slope_pa_per_m
+):
+    """:func:`write_inp`'s choices checked; for ``step="push"`` the push distance (m) and the stick slope (Pa/m)
+    with their defaults. Returns ``(slide_distance_m, stick_slope_pa_per_m)``."""
     if step not in ("static", "dynamic", "push"):
         raise InputError(None, "step 'static', 'dynamic' or 'push'", column="step", got=step)
     if dialect not in ("calculix", "abaqus"):
@@ -425,29 +470,32 @@ def write_inp(
             raise InputError(
                 None, "a positive stick slope in Pa/m", column="stick_slope_pa_per_m", got=stick_slope_pa_per_m
             )
-    mat = dict(RUBBER, **(material or {}))
-    hf = heightfield
-    L, W, _ = slider.size_m
-    v_ms = float(kmh_to_ms(speed_kmh))
-    notes = []
-    if step == "dynamic":
-        x0, x1, y0, y1 = hf.extent
-        if slide_distance_m is None:
-            slide_distance_m = (x1 - x0) - L
-        if center_xy_m is None:
-            center_xy_m = (x0 + 0.5 * L, 0.5 * (y0 + y1))
-        if center_xy_m[0] + 0.5 * L + slide_distance_m > x1 + 1e-9:
-            raise InputError(
-                hf.name or None,
-                "a slide that keeps the slider on the pavement",
-                column="slide_distance_m",
-                got=slide_distance_m,
-            )
-        if not v_ms > 0:
-            raise InputError(None, "a positive sliding speed in km/h", column="speed_kmh", got=speed_kmh)
-    off = slider_placement(slider, hf, center_xy_m, overclosure_m)
-    kpen = float(penalty_pa_per_m) if penalty_pa_per_m else 10.0 * mat["E_pa"] / slider.hz
+    return slide_distance_m, stick_slope_pa_per_m
 
+
+def _dynamic_slide(hf: Heightfield, L: float, v_ms: float, speed_kmh: float, slide_distance_m, center_xy_m):
+    """The slide of a dynamic deck: its distance (m; default the pavement length minus the slider length ``L``)
+    and the slider's start centre (m; default at the x-start), checked to stay on the pavement."""
+    x0, x1, y0, y1 = hf.extent
+    if slide_distance_m is None:
+        slide_distance_m = (x1 - x0) - L
+    if center_xy_m is None:
+        center_xy_m = (x0 + 0.5 * L, 0.5 * (y0 + y1))
+    if center_xy_m[0] + 0.5 * L + slide_distance_m > x1 + 1e-9:
+        raise InputError(
+            hf.name or None,
+            "a slide that keeps the slider on the pavement",
+            column="slide_distance_m",
+            got=slide_distance_m,
+        )
+    if not v_ms > 0:
+        raise InputError(None, "a positive sliding speed in km/h", column="speed_kmh", got=speed_kmh)
+    return slide_distance_m, center_xy_m
+
+
+def _inp_numbering(slider: SliderMesh, hf: Heightfield, off) -> dict:
+    """Node and element numbers of the deck (slider first, then the pavement, 1-based), the node sets and the
+    tributary areas of the top nodes."""
     sp = slider.points + np.array(off)
     ns = slider.n_nodes
     s_ids = np.arange(1, ns + 1)
@@ -467,6 +515,42 @@ def write_inp(
     wy[[0, -1]] *= 0.5
     trib = np.outer(wx, wy).ravel()  # same C order as top_nodes()/bottom_nodes()
 
+    return {
+        "sp": sp,
+        "ns": ns,
+        "s_ids": s_ids,
+        "ppts": ppts,
+        "phex": phex,
+        "p_ids": p_ids,
+        "es": es,
+        "e_slider": e_slider,
+        "e_pave": e_pave,
+        "conn_s": conn_s,
+        "conn_p": conn_p,
+        "bottom_elems": bottom_elems,
+        "top_ids": top_ids,
+        "ref": ref,
+        "wx": wx,
+        "wy": wy,
+        "trib": trib,
+    }
+
+
+def _inp_model(m: dict, slider: SliderMesh, hf: Heightfield, off, step, dialect, element_type, title, mat) -> str:
+    """The heading, nodes, elements, sets, surfaces, materials and sections of the deck."""
+    sp, s_ids, ppts, p_ids, e_slider, conn_s, e_pave, conn_p, bottom_elems, top_ids, ref = (
+        m["sp"],
+        m["s_ids"],
+        m["ppts"],
+        m["p_ids"],
+        m["e_slider"],
+        m["conn_s"],
+        m["e_pave"],
+        m["conn_p"],
+        m["bottom_elems"],
+        m["top_ids"],
+        m["ref"],
+    )
     out = []
     w = out.append
     w("*HEADING\n")
@@ -502,6 +586,14 @@ def write_inp(
     w("*MATERIAL, NAME=PAVE\n*ELASTIC\n2.0e10, 0.3\n*DENSITY\n2400.\n")
     w("*SOLID SECTION, ELSET=SLIDER, MATERIAL=RUBBER\n")
     w("*SOLID SECTION, ELSET=PAVEMENT, MATERIAL=PAVE\n")
+    return "".join(out)
+
+
+def _inp_interaction(step, dialect, contact, law: ExponentialDecay, v_ms, kpen, stick_slope_pa_per_m):
+    """The surface interaction, friction and contact pair: ``(cards, mu_eq or None, notes)``."""
+    notes = []
+    out = []
+    w = out.append
     w("*SURFACE INTERACTION, NAME=SLIDER_ROAD\n")
     if dialect == "abaqus" and step == "dynamic":
         w("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=HARD\n")
@@ -531,6 +623,14 @@ def write_inp(
         w("*CONTACT PAIR, INTERACTION=SLIDER_ROAD, MECHANICAL CONSTRAINT=PENALTY\nSLIDER_FACE, PAVE_FACE\n")
     else:
         w(f"*CONTACT PAIR, INTERACTION=SLIDER_ROAD, TYPE={ctype}\nSLIDER_FACE, PAVE_FACE\n")
+    return "".join(out), mu_eq, tuple(notes)
+
+
+def _inp_steps(m: dict, step, dialect, holder, load_n, slide_distance_m, v_ms, push_increments) -> str:
+    """The boundary conditions, the holder, the load and the step(s) with their output requests."""
+    ns, s_ids, top_ids, ref, trib = (m["ns"], m["s_ids"], m["top_ids"], m["ref"], m["trib"])
+    out = []
+    w = out.append
     w("*BOUNDARY\nPAVE_ALL, 1, 3\nSLIDER_TOP, 2, 2\n")
     if step in ("static", "push"):
         w("SLIDER_TOP, 1, 1\n")
@@ -574,27 +674,7 @@ def write_inp(
             "*NODE OUTPUT, NSET=SLIDER_TOP\nRF1, RF3, U1, U3\n"
         )
     w("*END STEP\n")
-    text = "".join(out)
-    path = Path(path)
-    write_text(path, text)
-    return InpDeck(
-        path,
-        step,
-        dialect,
-        holder,
-        s_ids,
-        p_ids,
-        ref,
-        off,
-        slider.bottom_nodes() + 1,
-        trib,
-        float(load_n),
-        kpen,
-        mu_eq,
-        v_ms if step == "dynamic" else None,
-        slide_distance_m,
-        tuple(notes),
-    )
+    return "".join(out)
 
 
 # ---------------------------------------------------------------------- CalculiX runner

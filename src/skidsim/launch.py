@@ -9,10 +9,17 @@
   repeats no finished FE run.
 * Ctrl-C or SIGTERM: Snakemake is asked to stop its jobs, and one line says how to resume; exit status 130
   (SIGINT) or 143 (SIGTERM).
+* Snakemake does not outlive this process: it runs under a small leader (:func:`lead_group`) in a process group of
+  its own with its jobs; when this process dies in any way, ``kill -9`` included, Linux tells the leader
+  (``prctl(PR_SET_PDEATHSIG)``) and the leader stops the group as a Ctrl-C does (SIGINT to Snakemake and its jobs;
+  Snakemake stops in order). The group of its own means a Ctrl-C at the terminal reaches this process only, which
+  stops Snakemake once.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import os
 import signal
 import subprocess
@@ -56,6 +63,52 @@ def live_snakemake_in(workdir: Path, exclude: tuple[int, ...] = ()) -> list[int]
     return out
 
 
+#: ``prctl`` option: the signal the calling process gets when its parent dies (linux/prctl.h).
+PR_SET_PDEATHSIG = 1
+
+
+def _on_parent_death(parent_pid: int, sig: int) -> None:
+    """Ask Linux for ``sig`` when the parent ``parent_pid`` dies (``prctl(PR_SET_PDEATHSIG)``); when it is already
+    gone, send ``sig`` now. Does nothing where there is no ``prctl`` (not Linux)."""
+    libc_name = ctypes.util.find_library("c") if sys.platform.startswith("linux") else None
+    if libc_name is None:
+        return
+    if ctypes.CDLL(libc_name, use_errno=True).prctl(PR_SET_PDEATHSIG, int(sig), 0, 0, 0) != 0:
+        return  # pragma: no cover - prctl refused: the run goes on without it
+    if os.getppid() != parent_pid:
+        os.kill(os.getpid(), sig)
+
+
+def lead_group(parent_pid: int, cmd: list[str]) -> int:
+    """Run ``cmd`` (Snakemake) as the leader of the process group it and its jobs share, and stop the whole group
+    as a Ctrl-C does (SIGINT to every process of it) when the launcher ``parent_pid`` dies, ``kill -9`` included.
+
+    A SIGINT that reaches this process (the launcher stops the group) needs nothing more: Snakemake and its jobs got
+    it too. Returns Snakemake's exit status (128 + N when a signal N ended it)."""
+    stopping: list[int] = []
+    child: list[subprocess.Popen] = []
+
+    def parent_died(signum, _frame):
+        if not stopping:
+            stopping.append(signum)
+            if child:
+                os.killpg(0, signal.SIGINT)
+
+    # handlers, not SIG_IGN: an ignored SIGINT would be inherited by Snakemake, which then could not be stopped
+    signal.signal(signal.SIGINT, lambda *_: None)
+    signal.signal(signal.SIGHUP, parent_died)
+    _on_parent_death(parent_pid, signal.SIGHUP)
+    child.append(subprocess.Popen(cmd))
+    if stopping:  # the launcher died before Snakemake existed
+        os.killpg(0, signal.SIGINT)
+    rc = child[0].wait()
+    return rc if rc >= 0 else 128 - rc
+
+
+#: The command that runs :func:`lead_group` in a fresh Python: ``[python, -c, LEADER, parent pid, cmd...]``.
+LEADER = "import sys; from skidsim.launch import lead_group; sys.exit(lead_group(int(sys.argv[1]), sys.argv[2:]))"
+
+
 def stale_lock(workdir: Path) -> bool:
     """True when ``workdir/.snakemake/locks`` holds lock files and no Snakemake process runs there."""
     locks = workdir / ".snakemake" / "locks"
@@ -90,8 +143,10 @@ def main(argv: list[str] | None = None, snakemake: list[str] | None = None) -> i
     # handlers first: Snakemake then starts with SIGINT at its default (an ignored SIGINT, as in a background
     # shell job, would be inherited and Snakemake could not be stopped)
     old = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
-    # its own process group: a Ctrl-C at the terminal reaches this process only, which stops Snakemake once
-    children.append(subprocess.Popen(cmd + ["--rerun-incomplete"] + args, process_group=0))
+    # its own process group: a Ctrl-C at the terminal reaches this process only, which stops Snakemake once; the
+    # leader stops the group when this process dies, so that a kill -9 of it leaves no Snakemake behind
+    leader = [sys.executable, "-c", LEADER, str(os.getpid())]
+    children.append(subprocess.Popen(leader + cmd + ["--rerun-incomplete"] + args, process_group=0))
     child = children[0]
     if received:  # a signal came before the child existed
         os.killpg(child.pid, signal.SIGINT)

@@ -172,7 +172,11 @@ class Progress:
         self.t0 = time.perf_counter()
         self._last = self.t0
 
-    def __call__(self, done: int) -> None:
+    def __call__(self, done: int, total: int | None = None, *_timing) -> None:
+        """``done`` of ``total`` (default: the total given at construction); extra arguments (the solver's
+        ``elapsed_s, eta_s``) are ignored, so a Progress is also a solver ``progress`` callback."""
+        if total is not None:
+            self.total = max(int(total), 1)
         now = time.perf_counter()
         if now - self._last < self.every_s and done < self.total:
             return

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -119,6 +118,9 @@ class Requirements:
     max_height_span_mm: largest plausible range of valid heights (mm); above it heights are in the wrong unit.
     allow_outside: accept scan/DFT paths outside the campaign directory.
     mesh_study_site: the site the mesh study runs on (None: the first site); must be a site of the table.
+    quality: the ``quality:`` limits (:class:`~skidsim.texture.quality.QualityOptions`; None: its defaults), of
+        which the relief limits and the action apply here (``full`` level: a relief a pavement cannot have is a
+        problem with ``action: stop``, a WARNING with ``action: warn``).
     """
 
     calibration_kmh: tuple[float, ...] = SpeedOptions.calibration_kmh
@@ -136,6 +138,7 @@ class Requirements:
     allow_outside: bool = IngestOptions.allow_outside_campaign
     mesh_study_site: str | None = MeshStudyOptions.site
     source: str = CONFIG
+    quality: object = None
 
     @property
     def speeds_kmh(self) -> tuple[float, ...]:
@@ -170,7 +173,42 @@ class Requirements:
             allow_outside=bool(ing.allow_outside_campaign),
             mesh_study_site=ms.site if ms.sizes_mm else None,
             source=source,
+            quality=_quality_options(config),
         )
+
+
+def _quality_options(config: dict):
+    from .texture.quality import QualityOptions
+
+    q = QualityOptions.from_dict(config.get("quality"))
+    return None if q == QualityOptions() else q  # None: the defaults, as Requirements() has them
+
+
+def check_relief(path, surface, req: Requirements) -> list[InputError]:
+    """The relief of a decoded scan against the ``quality:`` limits (:func:`skidsim.texture.quality.relief_mm`):
+    outside them a problem naming the scan (``action: stop``) or a WARNING (``action: warn``)."""
+    import logging
+
+    from .texture.quality import QualityOptions, relief_breach, relief_mm
+
+    opt = req.quality or QualityOptions()
+    relief = relief_mm(surface)
+    breach = relief_breach(relief, opt)
+    if breach is None:
+        return []
+    if opt.action == "warn":
+        logging.getLogger("skidsim").warning("SCAN RELIEF %s: %s (quality.action: warn)", path, breach)
+        return []
+    return [
+        InputError(
+            path,
+            f"a relief of a pavement surface, {opt.min_relief_mm:g} to {opt.max_relief_mm:g} mm "
+            "(quality.min_relief_mm, quality.max_relief_mm; 0.5-99.5 % of the heights about their plane)",
+            column="heights",
+            got=f"{relief:.3g} mm",
+            hint=f"{breach}; quality.action: stop",
+        )
+    ]
 
 
 class ConfigProblem(InputError):
@@ -243,16 +281,6 @@ def check_config(req: Requirements) -> list[InputError]:
 
 
 # --------------------------------------------------------------------------------------------------- sites.csv
-
-
-def inside(directory: Path, text: str) -> bool:
-    """True when the path ``text`` of ``sites.csv`` (relative or absolute) lies inside ``directory``.
-
-    Lexical: ``..`` components are resolved, symbolic links are not followed (a link inside the campaign is the
-    user's choice)."""
-    p = Path(os.path.normpath(Path(directory) / Path(text).expanduser()))
-    d = Path(os.path.normpath(directory))
-    return p == d or d in p.parents
 
 
 def check_table(directory, req: Requirements = Requirements(), points: bool = True) -> tuple[object, list[InputError]]:
@@ -472,6 +500,8 @@ def check_scan(path, req: Requirements = Requirements(), level: str = "full") ->
                     got=f"{span:.4g} mm",
                 )
             )
+        else:
+            problems += check_relief(path, surface, req)
     return problems
 
 
@@ -492,7 +522,7 @@ def problems(directory, req: Requirements = Requirements(), level: str = "full",
     """
     if level not in LEVELS:
         raise ValueError(f"level must be one of {LEVELS}, got {level!r}")
-    from .campaign import SITES_FILE, site_rows
+    from .campaign import SITES_FILE, inside, site_rows
 
     out = check_config(req)
     camp, table = check_table(directory, req, points=level != "table")

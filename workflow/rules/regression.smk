@@ -1,6 +1,6 @@
 # Texture -> friction regression (the study's PCA regression, Tables 5-6), honest cross-validated alternatives, and
 # FE predictions for the held-out sites (Figure 11). The 27/9 split is seeded, so it is known at parse time.
-from skidsim.config import regression_split
+from skidsim.regression.splits import regression_split
 
 TRAIN_SITES, TEST_SITES = regression_split(config["regression"], SITE_TABLE)
 REG = f"{RESULTS}/regression"

@@ -26,6 +26,7 @@ def all_targets():
         targets.append(f"{RESULTS}/mesh_study/figure9.png")
     if POPULATION:
         targets += [f"{RESULTS}/regression/figure11.png", f"{DIAG}/causes.json", f"{DIAG}/fe_gain.json"]
+        targets += prediction_targets()  # results/prediction/ (prediction.smk)
     if SYNTHETIC:
         targets.append(f"{RESULTS}/truth/campaign.json")
     for s in SITES:

@@ -25,4 +25,9 @@ result = criticism.diagnose(inputs, options)
 figs = diagnosis_figures(result, snakemake.output.figures)
 criticism.write_outputs(Path(snakemake.output.causes).parent, result.residuals, result.causes, result.gain, figs)
 top = result.named
-log.info("named cause: %s", None if top is None else f"{top.variable} ({top.level}, p_adj={top.p_adjusted:.3g})")
+log.info(
+    "named cause: %s",
+    None
+    if top is None
+    else f"{top.variable}{' = ' + top.label if top.label else ''} ({top.level}, p_adj={top.p_adjusted:.3g})",
+)

@@ -3,6 +3,7 @@
 import pandas as pd
 
 from skidsim import calibration
+from skidsim.calibration.cache import prefetch
 from skidsim.calibration.site import measured_points, site_simulator
 from skidsim.runlog import setup_logging, write_parquet
 
@@ -12,9 +13,14 @@ simulate, cache, _ = site_simulator(snakemake.input.pavement, snakemake.params.s
 speeds = sorted(
     set(map(float, snakemake.params.calibration_speeds)) | set(map(float, snakemake.params.validation_speeds))
 )
+results = {
+    method: calibration.CalibrationResult.from_json(path)
+    for method, path in zip(snakemake.params.methods, snakemake.input.calibrations)
+}
+# every method's runs are independent: the cache misses run as one batch (the same SN as single runs)
+prefetch(simulate, [(v, res.params) for res in results.values() for v in speeds])
 runs = {}
-for method, path in zip(snakemake.params.methods, snakemake.input.calibrations):
-    res = calibration.CalibrationResult.from_json(path)
+for method, res in results.items():
     runs[method] = calibration.simulate_speeds(simulate, res.params, speeds)
     log.info("%s %s: %s", site, method, runs[method][["speed_kmh", "sn_sim"]].to_dict("list"))
 measured = {site: measured_points(pd.read_parquet(snakemake.input.dft), site)}

@@ -4,6 +4,12 @@ A calibration calls ``simulate(speed_kmh: float, law: ExponentialDecay) -> FEOut
 :func:`skidsim.solver.simulate` into one, :meth:`FECache.wrap` puts a per-site parquet cache in front of any, so a
 rerun or a resumed run never repeats a simulation.
 
+**Batches.** Runs that do not depend on each other (the speeds of a verification batch, the validation speeds of
+every method) are announced with :func:`prefetch` ``(simulate, [(speed_kmh, law), ...])``: the simulators of this
+module then run the cache misses together (:func:`skidsim.solver.simulate_batch`, the same SN as single runs bit for
+bit), store them, and answer the following ``simulate(speed_kmh, law)`` calls with those outcomes as if each had
+run then (``cached`` False, its steps, its share of the batch's wall time). Cache keys are those of single runs.
+
 Cost accounting: ``n_steps`` / ``wall_s`` of an :class:`FEOutcome` are what this call paid (0 for a cache hit);
 ``cost_steps`` / ``cost_wall_s`` are the cost of the FE run behind the value, cached or not (the method's cost).
 """
@@ -56,6 +62,16 @@ class FEOutcome:
 
 
 Simulator = Callable[[float, ExponentialDecay], FEOutcome]
+Request = tuple[float, ExponentialDecay]  # (speed km/h, law) of one FE run
+
+
+def prefetch(simulate: Simulator, requests) -> None:
+    """Announce the FE runs ``requests`` (``(speed_kmh, law)`` pairs) to ``simulate``: a simulator that can batch
+    (:func:`fe_simulator`, :meth:`FECache.wrap` around one) runs them together now and answers the following calls
+    with their outcomes; any other simulator ignores it (its calls then run one by one, the same numbers)."""
+    fn = getattr(simulate, "prefetch", None)
+    if fn is not None:
+        fn([(float(v), law) for v, law in requests])
 
 
 def fe_simulator(pavement, config=None, **simulate_kwargs) -> Simulator:
@@ -64,14 +80,34 @@ def fe_simulator(pavement, config=None, **simulate_kwargs) -> Simulator:
     ``pavement``: a heightfield with ``evaluate`` and ``extent_m`` (``skidsim.reconstruct``); ``config``: a
     ``skidsim.solver.SolverConfig`` (None: the solver's reference preset); extra keyword arguments go to
     ``simulate`` (e.g. ``y_offset_mm``). Returns ``simulate(speed_kmh, law) -> FEOutcome`` with the run's SN,
-    time steps and wall time (s).
+    time steps and wall time (s). Its ``run_batch(requests)`` runs several ``(speed_kmh, law)`` together
+    (:func:`skidsim.solver.simulate_batch`; wall time shared by steps) and ``prefetch(requests)`` keeps those
+    outcomes for the next calls (see :func:`prefetch`); not with per-run outputs (``trace_path``, ``vtu_dir``).
     """
     from skidsim.solver import simulate as fe_simulate  # lazy: the solver is heavy and optional here
+    from skidsim.solver import simulate_batch
+
+    pending: dict[tuple, FEOutcome] = {}
 
     def simulate(speed_kmh: float, law: ExponentialDecay) -> FEOutcome:
+        out = pending.pop((float(speed_kmh), law), None)
+        if out is not None:
+            return out
         r = fe_simulate(pavement, float(speed_kmh), law, config, **simulate_kwargs)
         return FEOutcome(sn=float(r.sn), n_steps=int(r.n_steps), wall_s=float(r.wall_s))
 
+    def run_batch(requests: list[Request]) -> list[FEOutcome]:
+        rs = simulate_batch(pavement, [v for v, _ in requests], [law for _, law in requests], config, **simulate_kwargs)
+        return [FEOutcome(sn=float(r.sn), n_steps=int(r.n_steps), wall_s=float(r.wall_s)) for r in rs]
+
+    def prefetch_runs(requests: list[Request]) -> None:
+        todo = list(dict.fromkeys((float(v), law) for v, law in requests if (float(v), law) not in pending))
+        if len(todo) > 1:
+            pending.update(zip(todo, run_batch(todo)))
+
+    if not {"trace_path", "vtu_dir"} & set(simulate_kwargs):
+        simulate.run_batch = run_batch  # type: ignore[attr-defined]
+        simulate.prefetch = prefetch_runs  # type: ignore[attr-defined]
     return simulate
 
 
@@ -99,6 +135,7 @@ class FECache:
         self.n_hits = 0
         self.n_new = 0
         self._rows: dict[tuple, dict] = {}
+        self._fresh: dict[tuple, FEOutcome] = {}  # prefetched runs, answered once as new evaluations
         self._extra_columns: list[str] = []
         self._load()
 
@@ -219,6 +256,15 @@ class FECache:
 
     def store(self, speed_kmh: float, law: ExponentialDecay, outcome: FEOutcome) -> None:
         """Add one evaluation and write the table atomically."""
+        self.store_many([(speed_kmh, law, outcome)])
+
+    def store_many(self, evaluations) -> None:
+        """Add evaluations ``(speed_kmh, law, outcome)`` (in that order) and write the table once, atomically."""
+        for speed_kmh, law, outcome in evaluations:
+            self._add(speed_kmh, law, outcome)
+        self._write()
+
+    def _add(self, speed_kmh: float, law: ExponentialDecay, outcome: FEOutcome) -> None:
         k = self.key(speed_kmh, law)
         seq = 1 + max((int(r.get("seq") or 0) for r in self._rows.values()), default=0)
         rec = {
@@ -238,12 +284,37 @@ class FECache:
             }
         )
         self._rows[k] = rec
-        self._write()
 
     def wrap(self, simulate: Simulator) -> Simulator:
-        """A simulator that answers from the cache when it can and records every new evaluation."""
+        """A simulator that answers from the cache when it can and records every new evaluation.
+
+        Its ``prefetch(requests)`` (see :func:`prefetch`) leaves the cache hits and, when ``simulate`` can batch
+        (``simulate.run_batch``) and there are several misses, runs the misses together, stores them at once and
+        answers the next call of each as a new evaluation; otherwise the calls run one by one as without it.
+        """
+
+        def prefetch_runs(requests: list[Request]) -> None:
+            misses: dict[tuple, Request] = {}
+            for v, law in requests:
+                k = self.key(v, law)
+                if k not in self._rows and k not in self._fresh:
+                    misses.setdefault(k, (v, law))
+            run_batch = getattr(simulate, "run_batch", None)
+            if run_batch is None or len(misses) < 2:  # the calls run one by one, each stored at once, as before
+                return
+            todo = list(misses.values())
+            outs = run_batch(todo)
+            for k, out in zip(misses, outs):
+                if not isinstance(out, FEOutcome):
+                    raise TypeError(f"simulate must return FEOutcome, got {type(out).__name__}")
+                self._fresh[k] = out
+            self.store_many([(v, law, out) for (v, law), out in zip(todo, outs)])
 
         def cached_simulate(speed_kmh: float, law: ExponentialDecay) -> FEOutcome:
+            fresh = self._fresh.pop(self.key(speed_kmh, law), None)
+            if fresh is not None:
+                self.n_new += 1
+                return fresh
             hit = self.lookup(speed_kmh, law)
             if hit is not None:
                 self.n_hits += 1
@@ -256,4 +327,5 @@ class FECache:
             return out
 
         cached_simulate.cache = self  # type: ignore[attr-defined]
+        cached_simulate.prefetch = prefetch_runs  # type: ignore[attr-defined]
         return cached_simulate

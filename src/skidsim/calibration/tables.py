@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from skidsim.calibration.cache import Simulator
+from skidsim.calibration.cache import Simulator, prefetch
 from skidsim.calibration.measured import measured_at
 from skidsim.calibration.options import CALIBRATION_SPEEDS_KMH, VALIDATION_SPEEDS_KMH
 from skidsim.calibration.result import CalibrationResult
@@ -25,8 +25,10 @@ def simulate_speeds(
 ) -> pd.DataFrame:
     """FE runs of ``law`` at ``speeds_kmh`` (km/h): DataFrame speed_kmh, sn_sim, n_steps, wall_s (s), cached.
 
-    ``n_steps``/``wall_s`` are the cost of the FE run behind each value (also for cache hits).
+    ``n_steps``/``wall_s`` are the cost of the FE run behind each value (also for cache hits). The runs are
+    independent: a simulator that can batch runs them together (:func:`skidsim.calibration.cache.prefetch`).
     """
+    prefetch(simulate, [(float(v), law) for v in speeds_kmh])
     rows = []
     for v in speeds_kmh:
         out = simulate(float(v), law)

@@ -9,7 +9,10 @@ The modules follow the path of the data (docs/model-criticism.md describes every
 * :mod:`.covariates` -- the candidate causes (sites.csv columns, texture parameters, their clusters and PCs);
 * :mod:`.adjustment`, :mod:`.crossval`, :mod:`.permutations` -- designs, cross-validated SSE, permutations;
 * :mod:`.screening` -- every candidate tested at every level; :mod:`.fdr` -- false-discovery control;
-* :mod:`.causes` -- :class:`Cause` records and the ranking that names the top cause;
+* :mod:`.texture_candidate` -- the texture model as a candidate cause (richer texture models tested as one unit)
+  and the share of the section effect a candidate explains;
+* :mod:`.causes` -- :class:`Cause` records and the ranking that names the top cause (with the naming rule of a
+  section effect, :func:`section_rule`);
 * :mod:`.extensions` -- the physical and generic extensions and the choice for a named cause;
 * :mod:`.scopes`, :mod:`.recalibration`, :mod:`.gain` -- cross-fitting on held-out speeds and sites, bootstrap
   gain; :mod:`.fe_extension` -- the viscoelastic FE extension; :mod:`.report` -- the output files.
@@ -25,7 +28,15 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from .adjustment import added_variable, texture_model_scores
-from .causes import Cause, named_cause, order_by_refinement, refines
+from .causes import (
+    SECTION_SHARE_MIN,
+    SECTION_UNEXPLAINED,
+    Cause,
+    named_cause,
+    order_by_refinement,
+    refines,
+    section_rule,
+)
 from .covariates import (
     DEFAULT_EXCLUDE,
     CandidateRoles,
@@ -41,6 +52,7 @@ from .options import DiagnosisOptions
 from .report import write_outputs
 from .residuals import LEVELS, build_residuals
 from .screening import screen_candidates
+from .texture_candidate import is_texture_model, texture_model_term
 
 __all__ = [
     "DiagnosisInputs",
@@ -67,6 +79,11 @@ __all__ = [
     "texture_clusters",
     "added_variable",
     "texture_model_scores",
+    "texture_model_term",
+    "is_texture_model",
+    "section_rule",
+    "SECTION_SHARE_MIN",
+    "SECTION_UNEXPLAINED",
     "LEVELS",
     "DEFAULT_EXCLUDE",
 ]
@@ -103,13 +120,18 @@ def diagnose(
         res, sites, texture, bin_kmh, roles.exclude, lead=inputs.prediction_features
     )
     texture_model = {"prediction_model": inputs.prediction_model, **texture_model}
-    causes = screen_candidates(res, sites, texture, options, roles, texture_pc_scores=pcs)
+    causes = screen_candidates(
+        res, sites, texture, options, roles, texture_pc_scores=pcs, texture_lead=inputs.prediction_features
+    )
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture, exclude=roles.exclude)
     if top is None:
         gain, preds = baseline_gain(res, options)
         return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, pd.DataFrame())
-    model = apply_extension(top, sites, texture, speed_bin_kmh=bin_kmh, exclude=roles.exclude)
+    term = texture_model_term(top, res, sites, texture, pcs, inputs.prediction_features, roles, bin_kmh)
+    model = apply_extension(top, sites, texture, speed_bin_kmh=bin_kmh, exclude=roles.exclude, texture_design=term)
+    if term is not None:  # the figures plot the residual against the member's first column (its standardised axis)
+        cov = cov.join(pd.Series([r[0] for r in term.design], index=list(term.sites), name=top.variable))
     gain, preds = evaluate_extension(model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude)
     av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
     return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, av)

@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import pandas as pd
+
+#: The naming rule of a section effect: a candidate is named for it only when it explains at least this share of
+#: the section effect's sum of squares (:func:`section_rule`).
+SECTION_SHARE_MIN = 0.5
+#: The label of section identity when it is significant and nothing explains most of it.
+SECTION_UNEXPLAINED = "section (unexplained)"
+#: Sources of the texture explanations of a section effect (texture parameters, the texture-model candidate).
+TEXTURE_SOURCES = ("texture", "texture_model")
 
 
 @dataclass(frozen=True)
@@ -29,7 +37,12 @@ class Cause:
     principal components its test is conditioned on (the texture-adjusted test,
     :func:`skidsim.criticism.adjustment.texture_adjustment`); -1 for the residual test; ``texture_pcs_cv``: the
     leading PCs of the best predictive texture model (leave-one-section-out), against which ``cv_gain`` and the
-    texture-refit extension are computed.
+    texture-refit extension are computed. ``section_share``: the share of the section effect of the tested
+    residual (same level and kind) that the candidate explains,
+    ``1 - SS_sec(residual net of the candidate) / SS_sec(residual)``
+    (:func:`skidsim.criticism.texture_candidate.section_share`; NaN where not computed); ``section_share_main``:
+    the same for the site means (between sites); ``section_id``: the candidate is section identity; ``label``:
+    what the report names (``section (unexplained)``, or the texture model in words; empty: the variable).
     """
 
     variable: str
@@ -55,6 +68,10 @@ class Cause:
     unit_p: float = float("nan")
     texture_pcs: int = -1
     texture_pcs_cv: int = -1
+    section_share: float = float("nan")
+    section_share_main: float = float("nan")
+    section_id: bool = False
+    label: str = ""
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -70,6 +87,18 @@ def _group(variable: str, candidates, corr: pd.DataFrame, corr_group: float) -> 
         row = corr[variable]
         return tuple(sorted(row.index[row >= corr_group]))
     return ()
+
+
+def _label(t, mpd: str | None) -> str:
+    """What the report names for a test: the texture model in words for a texture-model candidate, and for a
+    texture parameter between sites (not the MPD x speed drainage hypothesis) the texture model's misfit it shows;
+    section identity is labelled by :func:`section_rule`; else empty (the variable itself)."""
+    if t.source == "texture_model":
+        return f"the texture model: {t.words}"
+    if t.source == "texture" and t.level == "between-site" and not (t.variable == mpd and t.kind == "x_speed"):
+        what = "friction level" if t.kind == "main" else "speed shape of friction"
+        return f"the texture model misses how {t.variable} changes the {what}"
+    return ""
 
 
 def make_causes(tests, adjustment, candidates, options, n_permutations: int) -> list[Cause]:
@@ -110,6 +139,10 @@ def make_causes(tests, adjustment, candidates, options, n_permutations: int) -> 
                 unit_p=float(adjustment.unit_p[key]),
                 texture_pcs=int(t.texture_pcs),
                 texture_pcs_cv=int(t.texture_pcs_cv),
+                section_share=float(t.section_share),
+                section_share_main=float(t.section_share_main),
+                section_id=bool(t.section_id),
+                label=_label(t, candidates.mpd),
             )
         )
     return causes
@@ -194,12 +227,97 @@ def _shape_below_its_covariate(causes: list[Cause]) -> None:
         causes.insert(xs[0], causes.pop(ff[0]))
 
 
+def _share_of(c: Cause, kind: str) -> float:
+    """The share of a section effect of ``kind`` that cause ``c`` explains (its own kind, or the site means)."""
+    if c.kind == kind:
+        return c.section_share
+    return c.section_share_main if kind == "main" else float("nan")
+
+
+def _explains(c: Cause, kind: str, share_min: float) -> bool:
+    s = _share_of(c, kind)
+    return bool(np.isfinite(s) and s >= share_min)
+
+
+def _explanation(c: Cause, S: Cause, texture: bool, share_min: float) -> bool:
+    """Whether ``c`` explains at least ``share_min`` of the section effect ``S``: a texture cause (``texture``;
+    of S's kind, or of any kind for a section effect on the site means) or a section-level column of S's kind."""
+    if c is S or not c.significant or c.level != S.level:
+        return False
+    K = S.kind
+    if texture:
+        return c.source in TEXTURE_SOURCES and (c.kind == K or K == "main") and _explains(c, K, share_min)
+    return c.kind == K and c.section_level and not c.section_id and _explains(c, K, share_min)
+
+
+def _pos(causes: list[Cause], c: Cause) -> int:
+    """Index of ``c`` in ``causes`` by identity."""
+    return next(k for k, x in enumerate(causes) if x is c)
+
+
+def _move(causes: list[Cause], c: Cause, to: int) -> None:
+    """Move ``c`` to index ``to`` (an index of the list without ``c``). In place."""
+    causes.pop(_pos(causes, c))
+    causes.insert(to, c)
+
+
+def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> list[Cause]:
+    """The naming rule of a section effect (docs/model-criticism.md, section 2, "Naming a section effect").
+
+    For every significant section identity S (level L, kind K):
+
+    * a significant section-level column of L and K that explains less than ``share_min`` of S's sum of squares
+      (``section_share``) is not named for it: it moves right below S (a column that correlates with the section
+      means by chance, however little it explains, no longer takes the name);
+    * a significant texture explanation at L (a texture cluster, MPD, or the texture model; of kind K, or of any
+      kind when K is ``main`` and it explains that share of the site means' section effect) that explains at least
+      ``share_min`` of it moves right above S (the one with the largest share): the texture model, or the texture
+      measure, is the cause;
+    * if no explanation (such a texture cause, or a section-level column that explains at least ``share_min``)
+      ranks above S, S is labelled ``section (unexplained)``.
+
+    Then a texture-model candidate that explains no significant section effect goes below every other significant
+    cause (it is evidence about the texture model, not the first explanation of a site-level residual)."""
+    causes = list(causes)
+    used = set()
+    for S0 in [c for c in causes if c.section_id and c.significant]:
+        S, L, K = S0, S0.level, S0.kind
+        weak = [
+            c
+            for c in causes[: _pos(causes, S)]
+            if c.significant and c.level == L and c.kind == K and c.section_level and not c.section_id
+            if not _explanation(c, S, False, share_min)
+        ]
+        for c in weak:
+            _move(causes, c, _pos(causes, S))  # right below S (S moved up by one)
+        expl = [c for c in causes if _explanation(c, S, True, share_min)]
+        if expl:
+            used.update(id(c) for c in expl)
+            best = max(expl, key=lambda c: _share_of(c, K))
+            if _pos(causes, best) > _pos(causes, S):
+                _move(causes, best, _pos(causes, S))
+        k = _pos(causes, S)
+        if not any(_explanation(c, S, True, share_min) or _explanation(c, S, False, share_min) for c in causes[:k]):
+            causes[k] = replace(S, label=SECTION_UNEXPLAINED)
+    tm = [c for c in causes if c.significant and c.source == "texture_model" and id(c) not in used]
+    others = [c for c in causes if c.significant and c.source != "texture_model"]
+    if tm and others:
+        last = max(_pos(causes, c) for c in others)
+        demote = [c for c in tm if _pos(causes, c) < last]
+        rest = [c for c in causes if all(c is not d for d in demote)]
+        pos = max(_pos(rest, c) for c in others) + 1
+        causes = rest[:pos] + demote + rest[pos:]
+    return causes
+
+
 def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None) -> list[Cause]:
     """Significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
-    ``z``; then the parsimony rules: :func:`order_by_refinement`, MPD x speed above the texture clusters holding
-    MPD, the within-site functional form below a significant within-site covariate x speed."""
+    ``z``; then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
+    (:func:`section_rule`), MPD x speed above the texture clusters holding MPD, the within-site functional form
+    below a significant within-site covariate x speed."""
     causes = sorted(causes, key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     causes = order_by_refinement(causes, cov)
+    causes = section_rule(causes)
     _mpd_above_its_clusters(causes, mpd_col)
     _shape_below_its_covariate(causes)
     return causes

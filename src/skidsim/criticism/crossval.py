@@ -81,3 +81,16 @@ def cv_sse(
         sse0 += float(((Y[te] - mean_tr) ** 2).sum())
         sse1 += float(((Y[te] - _fold_prediction(Y, values, dtype, te, tr, mean_tr)) ** 2).sum())
     return sse0, sse1
+
+
+def cv_sse_design(Y: np.ndarray, Z: np.ndarray, fold: np.ndarray) -> tuple[float, float]:
+    """Cross-validated SSE (mu^2) of the residual model without (training column means) and with a multi-column
+    design ``Z`` (n, q) (OLS on ``[1, Z]`` fitted on the training folds): the texture-model candidate."""
+    sse0 = sse1 = 0.0
+    for f in np.unique(fold):
+        te, tr = fold == f, fold != f
+        sse0 += float(((Y[te] - Y[tr].mean(axis=0)) ** 2).sum())
+        X = np.c_[np.ones(len(Y)), Z]
+        beta, *_ = np.linalg.lstsq(X[tr], Y[tr], rcond=None)
+        sse1 += float(((Y[te] - X[te] @ beta) ** 2).sum())
+    return sse0, sse1

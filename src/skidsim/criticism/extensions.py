@@ -249,6 +249,30 @@ class CovariateTerm:
 
 
 @dataclass(frozen=True)
+class TextureModelTerm:
+    """The richer texture model of a texture-model cause (:mod:`skidsim.criticism.texture_candidate`): between
+    sites the prediction's level is corrected by a linear model of the residual site means on the member's
+    design, ``after = before + b0 + Z_i b`` (least squares on the training sites; ``Z`` the member's 3 columns,
+    e.g. ``[z, z^2, z^3]`` of a texture axis, each standardised over the sites). Within a site (held-out speeds)
+    it changes nothing: the texture model does not enter the calibrated simulation. ``sites`` and ``design``
+    (one row of 3 values per site) hold the design, ``name`` the cause's variable, ``words`` what it means."""
+
+    name: str
+    sites: tuple = ()
+    design: tuple = ()
+    words: str = ""
+    physical: bool = False
+
+    def design_of(self, sites) -> np.ndarray:
+        """The design rows (len(sites), q) of ``sites``."""
+        pos = {s: k for k, s in enumerate(self.sites)}
+        missing = [s for s in sites if s not in pos]
+        if missing:
+            raise InputError("texture table", "texture values of every held-out site", column="site", got=missing[:5])
+        return np.asarray([self.design[pos[s]] for s in sites], dtype=float)
+
+
+@dataclass(frozen=True)
 class SharedShape:
     """A residual speed profile shared by all sites (wrong functional form of mu(v)): additive ``h(v)``, the mean
     training residual per speed bin (``speed_bin_kmh``), linearly interpolated in speed (km/h)."""
@@ -288,18 +312,29 @@ class ExtendedModel:
 
 
 def apply_extension(
-    cause: Cause, sites, texture_wide=None, *, speed_bin_kmh: float = 10.0, exclude=DEFAULT_EXCLUDE
+    cause: Cause,
+    sites,
+    texture_wide=None,
+    *,
+    speed_bin_kmh: float = 10.0,
+    exclude=DEFAULT_EXCLUDE,
+    texture_design: TextureModelTerm | None = None,
 ) -> ExtendedModel:
     """Choose the extension for a named cause.
 
     temperature (name contains 'temp') -> :class:`TemperatureShift`; MPD, or a macrotexture cause whose correlated
     group holds the MPD column, interacting with speed -> :class:`DrainageIFI`; functional form ->
     :class:`SharedShape` plus the :class:`ViscoelasticFE` hook; anything else -> :class:`CovariateTerm` (on the
-    level for ``main``, on the speed slope for ``x_speed``). Physical extensions carry the generic term as
+    level for ``main``, on the speed slope for ``x_speed``); the texture model (a texture-model cause) ->
+    ``texture_design``, its :class:`TextureModelTerm`. Physical extensions carry the generic term as
     ``fallback``.
     """
     if cause.kind == "functional_form":
         return ExtendedModel(cause, SharedShape(speed_bin_kmh=speed_bin_kmh), None, ViscoelasticFE())
+    if cause.source == "texture_model":
+        if texture_design is None:
+            raise InputError("texture table", f"the design of the texture-model cause {cause.variable}")
+        return ExtendedModel(cause, texture_design, None)
     pcs = cause.texture_pcs_cv if cause.dtype == "numeric" else -1
     generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope", texture_pcs=pcs)
     name = cause.variable.lower()

@@ -49,11 +49,14 @@ def family_sizes(levels, candidates) -> dict:
     main and x_speed) of a :class:`~skidsim.criticism.covariates.CandidateSet`."""
     m_fam = {"primary": 0, "secondary": 0}
     meta = [c for c in candidates.covariates.columns if candidates.info[c][0] != "texture"]
+    has_texture = len(meta) < len(candidates.covariates.columns)
     for lv in levels:
         m_fam["primary"] += 1  # functional form
         for kind in ("x_speed",) if lv == "within-site" else ("main", "x_speed"):
             n_temp = len(candidates.temperature) if lv == "between-site" else 0
             m_fam["primary"] += n_temp + (1 if (candidates.mpd is not None and kind == "x_speed") else 0)
+            if lv == "between-site" and kind == "main" and has_texture:
+                m_fam["primary"] += 1  # the texture model (skidsim.criticism.texture_candidate)
             m_fam["secondary"] += len(meta) - n_temp + len(candidates.clusters)
     return m_fam
 
@@ -89,12 +92,15 @@ class Unit:
 
 
 def testing_units(tests, candidates) -> dict:
-    """{key: Unit} over the tests: primary singles, texture clusters (per level and kind), secondary singles."""
+    """{key: Unit} over the tests: primary singles, the texture-model members (one primary unit per level and
+    kind, tested by their max-statistic), texture clusters (per level and kind), secondary singles."""
     cluster_of = {c: k for k, members in enumerate(candidates.clusters) for c in members}
     units = {}
     for j, t in enumerate(tests):
         v = t.variable
-        if (
+        if t.source == "texture_model":  # the richer texture models: one unit, max-statistic (primary family)
+            key, fam, name = ("texture_model", t.level, t.kind), "primary", None
+        elif (
             t.kind == "functional_form"
             or (v in candidates.temperature and t.level == "between-site")
             or (v == candidates.mpd and t.kind == "x_speed")
@@ -120,7 +126,8 @@ def _unit_pvalues(tests, units: dict, pvals: np.ndarray) -> tuple[dict, np.ndarr
             continue
         Tmax_perm = np.max(np.stack([tests[j].Tp for j in mem]), axis=0)
         Tobs = np.array([tests[j].T for j in mem])
-        u.name = f"cluster:{tests[mem[int(np.argmax(Tobs))]].variable}"
+        top = tests[mem[int(np.argmax(Tobs))]].variable
+        u.name = top if key[0] == "texture_model" else f"cluster:{top}"
         unit_p[key] = permutation_p(Tobs.max(), Tmax_perm)
         for j, tj in zip(mem, Tobs):
             wy_p[j] = permutation_p(tj, Tmax_perm)

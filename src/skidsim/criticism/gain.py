@@ -11,9 +11,9 @@ import pandas as pd
 from ..errors import InputError
 from .covariates import DEFAULT_EXCLUDE, score_table, site_covariates, texture_scores
 from .crossval import folds, is_section_nested
-from .extensions import CovariateTerm, ExtendedModel
+from .extensions import CovariateTerm, ExtendedModel, TemperatureShift
 from .options import DiagnosisOptions
-from .recalibration import predict_extended, recalibrate, refit_correction, refit_design
+from .recalibration import predict_extended, recalibrate, refit_correction, refit_design, temperature_identifiability
 from .residuals import LEVELS, require_columns
 from .scopes import Scope, centred_speed, make_scope, site_target
 
@@ -203,7 +203,8 @@ def _refit_covariates(residuals, sites, texture_wide, scopes: dict, pcs, exclude
     between = scopes["between-site"]
     if pcs is None or between is None or not set(between.sites) <= set(pcs.index):
         pcs = score_table(texture_scores(cov, info), cov.index)
-    return cov.join(pcs)
+    cov = cov.join(pcs)
+    return cov
 
 
 def evaluate_extension(
@@ -248,7 +249,41 @@ def evaluate_extension(
         "alternatives": [{"extension": type(e).__name__, "scopes": s} for e, s, _ in results if e is not best[0]],
     }
     gain["gain_excludes_zero"] = bool(own in best[1] and best[1][own]["gain_excludes_zero"])
+    ident = physical_identifiability(results, level_scopes, cov)
+    if ident is not None:
+        gain["identifiability"] = ident
     return gain, best[2]
+
+
+def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> dict | None:
+    """Whether the physical extension's own parameter is identified (gain.json ``identifiability``): for
+    :class:`~skidsim.criticism.extensions.TemperatureShift` between sites, the WLF reference temperature from the
+    measured curves of all sites with a permutation test of the temperatures
+    (:func:`skidsim.criticism.recalibration.temperature_identifiability`), and per fold the T_r fitted on the
+    training sections (median, deg C), the folds whose T_r stayed inside its bounds and the route chosen (curves,
+    or the shift of the texture model's prediction). ``why`` says why T_r is not identified (None where it is).
+    None for other extensions."""
+    between = level_scopes.get("between-site")
+    for ext, scopes, _ in results:
+        if not isinstance(ext, TemperatureShift) or "held_out_sites" not in scopes or between is None:
+            continue
+        whole = temperature_identifiability(ext, between, cov)
+        if whole is None:
+            return None
+        folds = scopes["held_out_sites"]["extension"]["params_per_fold"]
+        return {
+            "extension": "TemperatureShift",
+            "parameter": "t_ref_c",
+            "identifiable": bool(whole["identifiable"]),
+            "why": whole.get("why"),
+            "t_ref_c_all_sites": whole["t_ref_c"],
+            "perm_p": whole["perm_p"],
+            "folds": len(folds),
+            "identifiable_folds": int(sum(bool(f.get("wlf_identifiable")) for f in folds)),
+            "t_ref_c_median": float(np.median([f["t_ref_c"] for f in folds])),
+            "routes": {r: int(sum(f.get("route") == r for f in folds)) for r in ("curves", "prediction")},
+        }
+    return None
 
 
 def baseline_gain(residuals: pd.DataFrame, options: DiagnosisOptions = _DEFAULTS) -> tuple[dict, pd.DataFrame]:

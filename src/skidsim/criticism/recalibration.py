@@ -15,17 +15,22 @@ import pandas as pd
 from scipy.optimize import minimize, minimize_scalar
 
 from ..errors import ConfigError, InputError
+from ..friction import KMH_PER_MS
 from .extensions import (
     DRAINAGE_FORMS,
     CovariateTerm,
     DrainageIFI,
     SharedShape,
     TemperatureShift,
+    TextureModelTerm,
     ViscoelasticFE,
     exp_curve,
     fit_exp_curves,
 )
 from .scopes import Scope, centred_speed, site_mean, site_target, site_values
+
+#: Grid points of the profile of the WLF reference temperature over its bounds.
+WLF_GRID = 41
 
 # ----------------------------------------------------------------------------------------------------------------
 # texture refit
@@ -100,7 +105,19 @@ def _after_temperature(
     k = ext.speed_factor(T, anchor, float(theta[0]))
     bt = ext.vertical_factor(T, anchor, float(theta[1]) if len(theta) > 1 else None)
     b0, c0, a0 = scope.base
-    a = before + bt[i] * exp_curve(v * k[i], b0[i], c0[i], a0[i]) - exp_curve(v, b0[i], c0[i], a0[i])
+    if len(theta) > 2 and np.isfinite(float(theta[2])):
+        # the decay constant from the measured curves (wlf_from_curves): alpha_ref a_T(T_i) / a_T(T_0) at the
+        # site's own temperature (the decay constants follow the temperature itself, not its texture-free part)
+        Tr = site_values(cov, ext.column, scope.sites)
+        alpha = 10.0 ** float(theta[2]) * ext.speed_factor(Tr, float(Tr[train].mean()), float(theta[0]))
+        if len(theta) > 4:  # the law's b and c from the texture (coefficients theta[3], theta[4] on [1, PCs])
+            X = refit_design(scope, cov, max(ext.texture_pcs, 0), None)
+            bb, cc = X @ np.asarray(theta[3]), X @ np.asarray(theta[4])
+            a = bt[i] * exp_curve(v, bb[i], cc[i], alpha[i])
+        else:
+            a = before + bt[i] * exp_curve(v, b0[i], c0[i], alpha[i]) - exp_curve(v, b0[i], c0[i], a0[i])
+    else:
+        a = before + bt[i] * exp_curve(v * k[i], b0[i], c0[i], a0[i]) - exp_curve(v, b0[i], c0[i], a0[i])
     return a + _training_offset(scope, train, a)
 
 
@@ -143,9 +160,10 @@ def after_physical(ext, scope: Scope, cov: pd.DataFrame, train: np.ndarray, thet
     the extension), as the generic level term does with its intercept b0; shape extensions (DrainageIFI, slope
     terms) keep each site's level. gain.json ``over_shared_level`` separates that offset from the cause.
     """
-    theta = np.atleast_1d(np.asarray(theta, dtype=float))
-    if isinstance(ext, TemperatureShift):
+    if isinstance(ext, TemperatureShift):  # scalars, then (law route) two coefficient vectors
+        theta = list(theta) if isinstance(theta, (list, tuple)) else list(np.ravel(np.asarray(theta, dtype=float)))
         return _after_temperature(ext, scope, cov, train, theta)
+    theta = np.atleast_1d(np.asarray(theta, dtype=float))
     if isinstance(ext, DrainageIFI):
         return _after_drainage(ext, scope, cov, train, theta)
     raise ConfigError(f"not a physical extension: {type(ext).__name__}")
@@ -172,10 +190,205 @@ def _minimise_many(obj, bounds) -> list:
     return [float(x) for x in (r.x if r.fun <= obj(th0) else th0)]
 
 
+def _curve_bc(V: np.ndarray, Y: np.ndarray, alpha: np.ndarray):
+    """Per site the least-squares ``(b_i, c_i)`` of ``Y_i ~ b_i + c_i exp(-alpha_i s)`` and the residuals (NaN
+    padded rows as in :func:`_curve_sse`)."""
+    w = np.isfinite(Y)
+    e = np.exp(-alpha[:, None] * np.where(w, V, 0.0) / KMH_PER_MS) * w
+    yy = np.where(w, Y, 0.0)
+    n, se, see = w.sum(1), e.sum(1), (e * e).sum(1)
+    sy, sey = yy.sum(1), (e * yy).sum(1)
+    det = n * see - se * se
+    c = np.where(np.abs(det) > 1e-300, (n * sey - se * sy) / np.where(det == 0, 1, det), 0.0)
+    b = (sy - c * se) / n
+    return b, c, (b[:, None] + c[:, None] * e - yy) * w
+
+
+def _curve_sse(V: np.ndarray, Y: np.ndarray, alpha: np.ndarray) -> float:
+    """Sum over sites of the least-squares SSE of ``Y_i ~ b_i + c_i exp(-alpha_i s)`` (b, c in closed form per
+    site; ``V`` km/h and ``Y`` mu, (n, J), NaN padded)."""
+    r = _curve_bc(V, Y, alpha)[2]
+    return float((r * r).sum())
+
+
+def wlf_from_curves(
+    ext: TemperatureShift, T: np.ndarray, V: np.ndarray, Y: np.ndarray, bounds, n_perm: int = 0, seed: int = 0
+) -> dict:
+    """The WLF reference temperature T_r (deg C) from the sites' measured curves.
+
+    A speed shift ``mu_i(v) = mu_ref,i(v a_T(T_i) / a_T(T_0))`` of the exponential-decay law is the law with
+    ``alpha_i = alpha_ref,i a_T(T_i) / a_T(T_0)`` (``f(k v; b, c, alpha) = f(v; b, c, k alpha)``): a per-site
+    calibration absorbs it, but across sites the decay constants follow temperature. Model of the measured points
+    (``V`` km/h, ``Y`` mu, one row per site): ``b_i + c_i exp(-alpha_i v / 3.6)`` with ``b_i, c_i`` free per site
+    (the level and the vertical shift factor) and ``log10 alpha_i = c0 + log10 a_T(T_i; T_r) - log10 a_T(T_0;
+    T_r)``, ``T_0`` the mean temperature, one reference decay constant ``c0`` for the campaign, C1 and C2
+    universal: T_r is profiled over ``WLF_GRID`` points of ``bounds`` (c0 by a grid and a bounded scalar search at
+    each), then refined by a bounded scalar search.
+
+    ``identifiable``: the best T_r lies inside its bounds (at the "no effect" bound the curves show no speed shift)
+    and, with ``n_perm > 0``, the WLF term's reduction of the squared error of the model without it
+    (``log10 alpha_i = c0``) is significant at 0.05 against ``n_perm`` permutations of the temperatures over the
+    sites (seeded; profile on a 21-point grid for observed and permuted alike; the sites' own scatter of the
+    decay constant is the noise, not the points'). Returns t_ref_c, log10_alpha_ref, sse, sse_without (mu^2),
+    perm_p (None without permutations), identifiable and, when not identifiable, ``why``."""
+    T = np.asarray(T, float)
+    T0 = float(T.mean())
+
+    def inner(shift):
+        def f(c0):
+            la = np.clip(c0 + shift, -4.0, 1.0)
+            return _curve_sse(V, Y, 10.0**la)
+
+        grid_c0 = np.linspace(-3.0, 0.5, 15)
+        vals_c0 = [f(c) for c in grid_c0]
+        m = int(np.argmin(vals_c0))
+        lo_c, hi_c = grid_c0[max(m - 1, 0)], grid_c0[min(m + 1, len(grid_c0) - 1)]
+        r = minimize_scalar(f, bounds=(lo_c, hi_c), method="bounded", options={"xatol": 1e-4})
+        return (float(r.fun), float(r.x)) if r.fun <= vals_c0[m] else (float(vals_c0[m]), float(grid_c0[m]))
+
+    def sse(tr):
+        return inner(ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0])[0]
+
+    lo, hi = bounds
+    grid = np.linspace(lo, hi, WLF_GRID)
+    vals = np.array([sse(g) for g in grid])
+    j = int(np.argmin(vals))
+    a, b = grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)]
+    r = minimize_scalar(sse, bounds=(a, b), method="bounded", options={"xatol": 0.05})
+    tr, best = (float(r.x), float(r.fun)) if r.fun <= vals[j] else (float(grid[j]), float(vals[j]))
+    sse0 = inner(np.zeros(len(T)))[0]
+    c0 = inner(ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0])[1]
+    p = None
+    if n_perm > 0:
+        coarse = np.linspace(lo, hi, 21)
+
+        def gain_of(temps):
+            t0 = float(temps.mean())
+            ref = np.array([t0])
+            return sse0 - min(
+                inner(ext_log10_shift(ext, temps, g) - ext_log10_shift(ext, ref, g)[0])[0] for g in coarse
+            )
+
+        rng = np.random.default_rng(seed)
+        d_obs = gain_of(T)
+        d_perm = np.array([gain_of(rng.permutation(T)) for _ in range(n_perm)])
+        p = float((1 + np.sum(d_perm >= d_obs * (1 - 1e-12))) / (1 + n_perm))
+    out = {"t_ref_c": tr, "log10_alpha_ref": c0, "sse": best, "sse_without": sse0, "perm_p": p}
+    why = None
+    if j == 0 or tr - lo < 1e-3 * (hi - lo):
+        why = "the measured curves show no WLF speed shift between sites (T_r at its 'no effect' bound)"
+    elif j == len(grid) - 1:
+        why = "T_r runs to the WLF pole (the speed shift is steeper than the WLF form allows)"
+    elif p is not None and p > 0.05:
+        why = (
+            f"the decay constants of the measured curves do not follow the WLF shift of temperature beyond chance "
+            f"(permutation p = {p:.2g}, {n_perm} permutations of the temperatures over the sites)"
+        )
+    out["identifiable"] = why is None
+    if why:
+        out["why"] = why
+    return out
+
+
+def ext_log10_shift(ext: TemperatureShift, T: np.ndarray, t_ref_c: float) -> np.ndarray:
+    """log10 a_T(T) (deg C) of the extension's WLF constants; T at or below the pole gives +inf (excluded)."""
+    dt = np.asarray(T, float) - float(t_ref_c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(ext.c2_k + dt > 0, -ext.c1 * dt / (ext.c2_k + dt), np.inf)
+
+
+def site_curves(scope: Scope):
+    """Per site of the scope its measured points (speeds km/h, mu; NaN padded, equal speeds averaged) as
+    ``(V, Y)`` (n_sites, J); None with fewer than 4 speeds at the best-measured site."""
+    g = scope.rows.groupby(["site", "speed_kmh"], as_index=False)["measured"].mean()
+    J = int(g.groupby("site").size().max())
+    if J < 4:
+        return None
+    pos = {site: k for k, site in enumerate(scope.sites)}
+    V = np.full((len(scope.sites), J), np.nan)
+    Y = np.full((len(scope.sites), J), np.nan)
+    for site, gs in g.groupby("site"):
+        V[pos[site], : len(gs)] = gs["speed_kmh"].to_numpy(float)
+        Y[pos[site], : len(gs)] = gs["measured"].to_numpy(float)
+    return V, Y
+
+
+def temperature_identifiability(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, n_perm: int = 99) -> dict:
+    """:func:`wlf_from_curves` on every site of the held-out-site scope with ``n_perm`` permutations of the
+    temperatures (gain.json ``identifiability``); None without measured curves."""
+    curves = site_curves(scope)
+    if curves is None:
+        return None
+    T = site_values(cov, ext.column, scope.sites)
+    return wlf_from_curves(ext, T, *curves, ext.t_ref_bounds_c(T), n_perm=n_perm, seed=0)
+
+
+def _recalibrate_temperature_between(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, train: np.ndarray):
+    """Between sites: T_r from the training sites' measured curves (:func:`wlf_from_curves`; nuisance of the
+    reference decay constant: the ``texture_pcs`` texture PCs of a texture-adjusted cause), then the vertical
+    factor's slope on the training rows with T_r held. None with fewer than 4 measured speeds per site."""
+    curves = site_curves(scope)
+    if curves is None:
+        return None
+    V, Y = curves
+    T = site_values(cov, ext.column, scope.sites)
+    fit = wlf_from_curves(ext, T[train], V[train], Y[train], ext.t_ref_bounds_c(T))
+    fit["n_sites"] = int(train.sum())
+    alpha_ref = fit["log10_alpha_ref"]
+    params = {"t_ref_c": fit["t_ref_c"], "level_per_c": float(ext.level_per_c), "log10_alpha_ref": alpha_ref}
+    # the law's b and c of every training site at its WLF decay constant, regressed on the texture
+    Ttr = T[train]
+    alpha_tr = 10.0**alpha_ref * ext.speed_factor(Ttr, float(Ttr.mean()), fit["t_ref_c"])
+    b_tr, c_tr, _ = _curve_bc(V[train], Y[train], alpha_tr)
+    X = refit_design(scope, cov, max(ext.texture_pcs, 0), None)
+    beta_b = np.linalg.lstsq(X[train], b_tr, rcond=None)[0]
+    beta_c = np.linalg.lstsq(X[train], c_tr, rcond=None)[0]
+    law = [beta_b.tolist(), beta_c.tolist()]
+    if ext.fit_level:
+        rows_tr = train[scope.row_site]
+        y = scope.rows["measured"].to_numpy(float)
+
+        def obj(th):
+            a = after_physical(ext, scope, cov, train, [fit["t_ref_c"], float(np.ravel(th)[0]), alpha_ref, *law])
+            return float(np.sum((a[rows_tr] - y[rows_tr]) ** 2))
+
+        params["level_per_c"] = _minimise_one(obj, ext.level_bounds_per_c)[0]
+    params.update({f"wlf_{key}": v for key, v in fit.items() if key != "t_ref_c"})
+    params["t_ref_source"] = "measured curves (decay constants across sites)"
+    params["law_b_beta"], params["law_c_beta"] = law
+    return params
+
+
+def _Plain(ext: TemperatureShift) -> TemperatureShift:
+    """The extension marked for the prediction route only (a copy; ``_plain`` is not a dataclass field)."""
+    out = replace(ext)
+    object.__setattr__(out, "_plain", True)
+    return out
+
+
 def _recalibrate_physical(ext, scope: Scope, cov: pd.DataFrame, train: np.ndarray) -> dict:
     if isinstance(ext, TemperatureShift) and scope.name == "held_out_speeds":
         _physical_params(ext, scope, cov)  # the temperature column must exist
         return {"t_ref_c": float(ext.t_ref_c), "level_per_c": float(ext.level_per_c), "identifiable": False}
+    if isinstance(ext, TemperatureShift) and scope.name == "held_out_sites" and not getattr(ext, "_plain", False):
+        # two routes, the smaller training error wins (no held-out data): the WLF shift identified from the
+        # measured curves with the law's b and c from the texture, and the shift of the texture model's prediction
+        curves = _recalibrate_temperature_between(ext, scope, cov, train)
+        if curves is not None:
+            plain = _recalibrate_physical(_Plain(ext), scope, cov, train)
+            sse_c = _train_sse(ext, curves, scope, cov, train)
+            sse_p = _train_sse(ext, plain, scope, cov, train)
+            wlf = {k: v for k, v in curves.items() if k.startswith("wlf_") or k == "t_ref_source"}
+            if sse_c <= sse_p:
+                return {**curves, "route": "curves", "train_sse": sse_c, "train_sse_other": sse_p}
+            return {
+                **plain,
+                **wlf,
+                "t_ref_c_curves": curves["t_ref_c"],
+                "route": "prediction",
+                "train_sse": sse_p,
+                "train_sse_other": sse_c,
+            }
     if isinstance(ext, DrainageIFI) and ext.form == "auto":
         # each curve form fitted on the training data; the smaller training error wins (no held-out data)
         fits = [dict(recalibrate(replace(ext, form=f), scope, cov, train), form=f) for f in DRAINAGE_FORMS]
@@ -241,6 +454,17 @@ def _recalibrate_covariate(ext: CovariateTerm, scope: Scope, cov: pd.DataFrame, 
     return {"numeric": True, "z_mean": float(z[train].mean()), "beta": beta.tolist()}
 
 
+def _recalibrate_texture_model(ext: TextureModelTerm, scope: Scope, train: np.ndarray) -> dict:
+    """Least squares of the training sites' mean residual (mu) on ``[1, Z]`` (between sites); nothing within a
+    site."""
+    if scope.name != "held_out_sites":
+        return {"beta": None}
+    resid = scope.rows["measured"].to_numpy(float) - scope.rows["before"].to_numpy(float)
+    X = np.c_[np.ones(len(scope.sites)), ext.design_of(scope.sites)]
+    beta, *_ = np.linalg.lstsq(X[train], site_target("level", scope, resid, centred_speed(scope))[train], rcond=None)
+    return {"beta": beta.tolist()}
+
+
 def recalibrate(ext, scope: Scope, cov: pd.DataFrame, train: np.ndarray) -> dict:
     """Fit the extension's parameters on the training sites (boolean mask over ``scope.sites``).
 
@@ -257,6 +481,8 @@ def recalibrate(ext, scope: Scope, cov: pd.DataFrame, train: np.ndarray) -> dict
         return _recalibrate_shape(ext, scope, resid, train[scope.row_site])
     if isinstance(ext, CovariateTerm):
         return _recalibrate_covariate(ext, scope, cov, train)
+    if isinstance(ext, TextureModelTerm):
+        return _recalibrate_texture_model(ext, scope, train)
     raise ConfigError(f"cannot recalibrate extension {type(ext).__name__}")
 
 
@@ -291,7 +517,18 @@ def predict_extended(ext, params: dict, scope: Scope, cov: pd.DataFrame, train: 
     if isinstance(ext, DrainageIFI) and "form" in params:
         ext = replace(ext, form=params["form"])
     if getattr(ext, "physical", False):
+        if isinstance(ext, TemperatureShift) and "log10_alpha_ref" in params:
+            theta = [params["t_ref_c"], params.get("level_per_c", ext.level_per_c), params["log10_alpha_ref"]]
+            if "law_b_beta" in params:
+                theta += [params["law_b_beta"], params["law_c_beta"]]
+            return after_physical(ext, scope, cov, train, theta)
         return after_physical(ext, scope, cov, train, [params[k] for k in _physical_params(ext, scope, cov)[0]])
+    if isinstance(ext, TextureModelTerm):
+        before = scope.rows["before"].to_numpy(float)
+        if params.get("beta") is None:
+            return before.copy()
+        X = np.c_[np.ones(len(scope.sites)), ext.design_of(scope.sites)]
+        return before + (X @ np.asarray(params["beta"]))[scope.row_site]
     if isinstance(ext, SharedShape):
         return scope.rows["before"].to_numpy(float) + np.interp(
             scope.rows["speed_kmh"].to_numpy(float), params["speed_kmh"], params["h"]

@@ -84,8 +84,9 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
             "",
         ]
     grp = _fmt_group(top["group"]) or "-"
+    label = f" = {top['label']}" if top.get("label") else ""
     lines = [
-        f"**Named cause: `{top['variable']}`** ({top['level']}, {top['kind']}); correlated group: {grp}; "
+        f"**Named cause: `{top['variable']}`{label}** ({top['level']}, {top['kind']}); correlated group: {grp}; "
         f"effect {top['effect']:.4f} mu, cv gain {top['cv_gain']:.3f}, p = {top['p_value']:.2g}, "
         f"p_adj = {top['p_adjusted']:.2g}"
         + (f"; tested beyond the texture ({_conditioned_on(top, gain)})" if top.get("texture_pcs", -1) >= 0 else "")
@@ -96,6 +97,15 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         + ".",
         "",
     ]
+    ident = gain.get("identifiability")
+    if ident:
+        state = (
+            f"identified (T_r {ident['t_ref_c_all_sites']:.1f} deg C over all sites, permutation p "
+            f"{ident['perm_p']:.2g}; median over folds {ident['t_ref_c_median']:.1f} deg C)"
+            if ident.get("identifiable")
+            else f"not identifiable: {ident.get('why')}"
+        )
+        lines += [f"WLF reference temperature of TemperatureShift from the measured curves: {state}.", ""]
     own = gain.get("scopes", {}).get(gain.get("scope") or "", {})
     folds = own.get("extension", {}).get("params_per_fold", [])
     if folds and all("form" in f for f in folds):  # DrainageIFI form "auto": the curve form chosen per fold

@@ -29,12 +29,13 @@ from ..errors import InputError
 from .adjustment import adjusted_basis, basis, leverage_corrected, residualise, texture_adjustment
 from .causes import Cause, make_causes, rank_causes
 from .covariates import CandidateRoles, CandidateSet, candidate_set, scores_for
-from .crossval import cv_sse, folds, is_section_nested
+from .crossval import cv_sse, cv_sse_design, folds, is_section_nested
 from .extensions import ifi_speed_constant_kmh
 from .fdr import adjust, family_sizes, permutation_count
 from .options import DiagnosisOptions
 from .permutations import nested_permutations, perm_stats, site_permutations
 from .residuals import LEVELS, level_matrix, require_columns, texture_model_shape
+from .texture_candidate import TextureMember, member_basis, section_share, texture_members
 
 
 @dataclass
@@ -59,6 +60,10 @@ class CandidateTest:
     section_level: bool
     texture_pcs: int = -1
     texture_pcs_cv: int = -1
+    section_share: float = float("nan")
+    section_share_main: float = float("nan")
+    section_id: bool = False
+    words: str = ""
 
 
 @dataclass
@@ -140,7 +145,9 @@ def level_context(data: LevelData, cands: CandidateSet, P: int, rng) -> LevelCon
     perm_nested = nested_permutations(sec, P, rng)
     n_sec = len(np.unique(sec))
     section_level = {c: bool((C[c].groupby(sec).nunique() == 1).all()) for c in C.columns}
-    is_section_id = {c: section_level[c] and C[c].nunique() == n_sec for c in C.columns}
+    # section identity: a categorical label with one level per section (a section-constant *number*, e.g. traffic
+    # per section, is a covariate of the 12 sections, tested by the nested permutations like every covariate)
+    is_section_id = {c: section_level[c] and C[c].nunique() == n_sec and info[c][1] == "categorical" for c in C.columns}
     bases = {c: basis(C[c], info[c][1]) for c in C.columns}
     return LevelContext(data, C, info, sec, D, Ys, perm_site, perm_nested, section_level, is_section_id, bases, amp_col)
 
@@ -341,6 +348,75 @@ def functional_form_test(ctx: LevelContext, ff_delta: pd.DataFrame | None, P: in
     )
 
 
+def section_shares(ctx: LevelContext, tests: list[CandidateTest]) -> None:
+    """Fill, for the covariate tests of one level, the share of the section effect the candidate's (plain) basis
+    explains in its own kind's residual (``section_share``) and in the site means (``section_share_main``,
+    between sites), and whether it is section identity (:func:`~skidsim.criticism.texture_candidate.section_share`).
+    In place."""
+    for t in tests:
+        if t.variable not in ctx.bases:
+            continue
+        Q = ctx.bases[t.variable]
+        t.section_id = bool(ctx.is_section_id[t.variable])
+        t.section_share = section_share(Q, ctx.Ys[t.kind], ctx.sec)
+        if "main" in ctx.Ys:
+            t.section_share_main = section_share(Q, ctx.Ys["main"], ctx.sec)
+
+
+def texture_model_tests(ctx: LevelContext, members: list[TextureMember]) -> list[CandidateTest]:
+    """The texture model as a candidate cause between sites (site means, ``main``): each richer texture model
+    (:func:`~skidsim.criticism.texture_candidate.texture_members`) tested against the residual by the nested
+    permutations of every covariate (exact: the members are built from the texture alone); ``cv_gain`` is the
+    leave-one-section-out gain of the residual model ``[1, member design]`` over the training mean. The members
+    form one testing unit (:func:`skidsim.criticism.fdr.testing_units`)."""
+    if ctx.data.level != "between-site" or not members or "main" not in ctx.Ys:
+        return []
+    Y = ctx.Ys["main"]
+    Qs = [member_basis(m) for m in members]
+    Q = np.concatenate(Qs, axis=1)
+    owner = np.concatenate([np.full(q.shape[1], k) for k, q in enumerate(Qs)])
+    A = Q.T @ Y
+    T = np.bincount(owner, weights=(A * A).sum(axis=1), minlength=len(members))
+    Tp = perm_stats(Y, Q, owner, len(members), ctx.perm_nested)
+    fold = folds(ctx.sec, False)
+    out = []
+    for k, m in enumerate(members):
+        sse0, sse1 = cv_sse_design(Y, m.design, fold)
+        share = section_share(Qs[k], Y, ctx.sec)
+        out.append(
+            CandidateTest(
+                m.variable,
+                ctx.data.level,
+                "main",
+                float(T[k]),
+                Tp[:, k],
+                sse0,
+                sse1,
+                ctx.n,
+                1,
+                0,
+                "texture_model",
+                "texture_model",
+                False,
+                section_share=share,
+                section_share_main=share,
+                words=m.words,
+            )
+        )
+    return out
+
+
+def _members(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None, lead) -> list[TextureMember]:
+    """The richer texture models of a between-site level (none within sites or without texture columns)."""
+    if ctx.data.level != "between-site":
+        return []
+    if not any(cands.info[c][0] == "texture" for c in cands.covariates.columns):
+        return []
+    scores = scores_for(ctx.data.site_ids, pcs, cands.covariates, cands.info)
+    n_lead = int(pcs.attrs.get("n_lead", 0)) if pcs is not None and set(pcs.index) == set(ctx.data.site_ids) else 0
+    return texture_members(ctx.data.site_ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead)
+
+
 def _between_shape(residuals: pd.DataFrame, data: dict, speed_bin_kmh: float) -> pd.DataFrame | None:
     """``sn_sim - sn_pred`` per between-site site and bin, where it covers exactly the between-site sites."""
     if "between-site" not in data:
@@ -358,6 +434,7 @@ def screen_candidates(
     options: DiagnosisOptions | None = None,
     roles: CandidateRoles | None = None,
     texture_pc_scores: pd.DataFrame | None = None,
+    texture_lead=(),
 ) -> list[Cause]:
     """Screen every candidate cause at every level; returns the causes ranked by evidence
     (:func:`~skidsim.criticism.causes.rank_causes`).
@@ -365,7 +442,9 @@ def screen_candidates(
     ``residuals``: :func:`~skidsim.criticism.residuals.build_residuals` (the ``measured`` column enables the
     texture-adjusted tests); ``texture_pc_scores``
     (:func:`~skidsim.criticism.covariates.between_site_texture_scores`) supplies the PC scores the between-site
-    tests condition on (without it they are computed here, identically). Random draws: one generator seeded with
+    tests condition on (without it they are computed here, identically); ``texture_lead``: the prediction
+    model's texture terms (``DiagnosisInputs.prediction_features``), axes of the texture-model candidate
+    (:mod:`skidsim.criticism.texture_candidate`; the MPD column is always one). Random draws: one generator seeded with
     ``options.seed``, per level the site permutations, the nested permutations, then the sign flips. ``options``,
     ``roles``: None for the defaults.
     """
@@ -380,7 +459,10 @@ def screen_candidates(
     tests = []
     for d in data.values():
         ctx = level_context(d, cands, P, rng)
-        tests += covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
+        cov_tests = covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
+        section_shares(ctx, cov_tests)
+        tests += cov_tests
+        tests += texture_model_tests(ctx, _members(ctx, cands, texture_pc_scores, texture_lead))
         if ctx.amp_col is not None:
             tests.append(mpd_amplitude_test(ctx))
         tests.append(functional_form_test(ctx, ff_delta, P, rng))

@@ -192,6 +192,29 @@ def texture_measures(clean: np.ndarray, dx_mm: float, micro_cut_mm: float) -> di
     }
 
 
+def hidden_measures(clean: np.ndarray, dx_mm: float, micro_cut_mm: float, effect: str | None) -> dict:
+    """The texture measure a hidden effect reads (:data:`friction_models.HIDDEN_MEASURES`; {} for the others, so
+    that campaigns without such an effect keep their bytes), on the clean height map (mm):
+
+    * ``macro_sdq`` (``hysteresis``): rms slope (dimensionless, :func:`skidsim.texture.hybrid.sdq`) of the macro
+      band (wavelengths ``max(micro_cut_mm, 5 dx)`` to 50 mm, :func:`skidsim.texture.separate_bands`);
+    * ``micro_contact_mm`` (``contact_micro``): the micro band's rms over the scan counting only the points
+      within 0.5 mm of the tops (raw height >= its 99.5th percentile - 0.5 mm), ``sqrt(mean(micro^2 1[top]))``:
+      the microtexture the slider touches; also ``contact_share`` (the share of those points)."""
+    if effect not in friction_models.HIDDEN_MEASURES:
+        return {}
+    from ..texture import separate_bands
+    from ..texture.hybrid import sdq
+
+    cut = max(micro_cut_mm, 5 * dx_mm)
+    bands = separate_bands(Surface(clean, dx_mm, dx_mm, name="clean"), macro=(cut, 50.0))
+    if effect == "hysteresis":
+        return {"macro_sdq": float(sdq(bands["macro"].heights, dx_mm, dx_mm))}
+    raw, micro = bands["raw"].heights, bands["micro"].heights
+    top = raw >= np.quantile(raw, 0.995) - 0.5
+    return {"micro_contact_mm": float(np.sqrt(np.mean(micro**2 * top))), "contact_share": float(top.mean())}
+
+
 def spin_down(rng: np.random.Generator, c: dict) -> np.ndarray:
     """DFT speeds (km/h) from U(v_start) down to the last one >= v_end, steps ``step_kmh`` +- N(0, jitter)."""
     v = [float(rng.uniform(*c["v_start_kmh"]))]
@@ -202,9 +225,10 @@ def spin_down(rng: np.random.Generator, c: dict) -> np.ndarray:
         v.append(nxt)
 
 
-def _site_friction(rng: np.random.Generator, row, meas: dict, f: dict) -> dict:
+def _site_friction(rng: np.random.Generator, row, meas: dict, f: dict, extra: dict | None = None) -> dict:
     """The friction truth of one site: model parameters from the texture measures (mm) through the published
-    relations, with the section's (``row``) and the site's random factors."""
+    relations, with the section's (``row``) and the site's random factors; ``extra``: the measures of a hidden
+    effect that reads more than MPD (:func:`hidden_measures`), recorded in the ``hidden`` entry."""
     base_level = friction_models.level_from_micro(meas["micro_sq_mm"], f["sq_ref_mm"])
     site_level = float(np.exp(rng.normal(0.0, f["site_level_sd"])))
     site_sp = float(np.exp(rng.normal(0.0, f["site_sp_sd"])))
@@ -217,6 +241,10 @@ def _site_friction(rng: np.random.Generator, row, meas: dict, f: dict) -> dict:
         "kappa": float(f["hidden_kappa"]),
         "sp_kmh": friction_models.ifi_speed_constant_kmh(meas["mpd_mm"]) * sp_factor,
     }
+    if extra:
+        hidden.update(extra)
+        if f["hidden_effect"] == "contact_micro":
+            hidden.update(micro_sq_mm=float(meas["micro_sq_mm"]), sq_ref_mm=float(f["sq_ref_mm"]))
     return {
         "friction_model": f["model"],
         "parameters": params,
@@ -237,7 +265,10 @@ def site_mu(fr: dict, v_kmh) -> np.ndarray:
     h = fr.get("hidden") or {}
     if h.get("effect") is None:
         return mu
-    return mu * friction_models.hidden_factor(h["effect"], h["kappa"], h["sp_kmh"], v_kmh)
+    keys = ("macro_sdq", "micro_contact_mm", "micro_sq_mm", "sq_ref_mm")
+    return mu * friction_models.hidden_factor(
+        h["effect"], h["kappa"], h["sp_kmh"], v_kmh, **{k: h[k] for k in keys if k in h}
+    )
 
 
 def _trace(rng: np.random.Generator, fr: dict, c: dict) -> pd.DataFrame:
@@ -260,7 +291,8 @@ def generate_site(row, cfg: dict) -> SiteData:
     clean, layout = TEXTURES[cfg["texture"]].render(s_tex, shape, dx, sec, site_f, cfg["texture_params"])
     heights, scan_info = scanner.scan(clean, s_scan, dx, cfg["scanner"])
     meas = texture_measures(clean, dx, cfg["friction"]["micro_cut_mm"])
-    fr = _site_friction(s_fric, row, meas, cfg["friction"])
+    extra = hidden_measures(clean, dx, cfg["friction"]["micro_cut_mm"], cfg["friction"]["hidden_effect"])
+    fr = _site_friction(s_fric, row, meas, cfg["friction"], extra)
     dft = _trace(s_trace, fr, cfg["dft"])
     grid = np.arange(5.0, 85.0, 5.0)
     curve = site_mu(fr, grid)

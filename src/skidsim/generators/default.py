@@ -521,12 +521,15 @@ def _render(rng, c: dict, comb: dict, shape, dx: float, depth_factor: float):
         v = Y * ct - X * st
         rho_n = np.abs(u * (1.0 / a)) ** n_pl + np.abs(v * (1.0 / b)) ** n_pl
         inside = rho_n < 1.0
-        w = 1.0 - np.minimum(rho_n, 1.0) ** (m_v / n_pl)  # 1 - rho^m
-        z = (ztop - thick) + t0 * u + t1 * v + thick * w ** (1.0 / m_v)
+        # the cap only where it is drawn (inside the plan outline): the same arithmetic point by point
+        ui, vi = u[inside], v[inside]
+        w = 1.0 - np.minimum(rho_n[inside], 1.0) ** (m_v / n_pl)  # 1 - rho^m
+        z = (ztop - thick) + t0 * ui + t1 * vi + thick * w ** (1.0 / m_v)
         patch = top[i0:i1, j0:j1]
-        up = inside & (z > patch)
-        np.copyto(patch, z, where=up)
-        np.copyto(label[i0:i1, j0:j1], len(micro_of), where=up)
+        up = np.zeros_like(inside)
+        up[inside] = z > patch[inside]
+        patch[up] = z[up[inside]]
+        label[i0:i1, j0:j1][up] = len(micro_of)
         micro_of.append(float(comp["micro_factor"]) * (0.8 + 0.4 * U[k, 17]))
     # mastic: mortar level, smooth undulation, surface voids
     mastic = -D_p + float(c["mastic_sd_mm"]) * _smooth_field(rng, shape, dx, float(c["mastic_corr_mm"]))

@@ -25,7 +25,14 @@ from ..errors import ConfigError
 
 MODELS = ("piarc", "rado", "penn_state")
 #: Hidden texture-and-speed effects a campaign may carry on top of its friction model (:func:`hidden_factor`).
-HIDDEN_EFFECTS = ("squeeze", "drainage")
+HIDDEN_EFFECTS = ("squeeze", "drainage", "hysteresis", "contact_micro")
+#: Effects that read a texture measure beyond MPD (:data:`HIDDEN_MEASURES`: the measure recorded in the truth's
+#: ``hidden`` entry, computed by :func:`skidsim.generators.campaign.hidden_measures` only when the effect is on).
+HIDDEN_MEASURES = {"hysteresis": "macro_sdq", "contact_micro": "micro_contact_mm"}
+#: ``hysteresis``: the macro rms slope at which the effect is zero (dimensionless; about the campaigns' median at
+#: 0.2 mm spacing) and the speed over which the factor grows by ``kappa (Sdq - SDQ_REF)`` (km/h, from 20 km/h).
+SDQ_REF = 0.5
+HYSTERESIS_SPAN_KMH = 50.0
 
 
 def ifi_speed_constant_kmh(mpd_mm: float) -> float:
@@ -96,13 +103,32 @@ def evaluate(model: str, params: dict, v_kmh) -> np.ndarray:
     raise ConfigError(f"friction model: expected one of {', '.join(MODELS)}, got {model!r}")
 
 
-def hidden_factor(effect: str | None, kappa: float, sp_kmh: float, v_kmh) -> np.ndarray:
+def hidden_factor(
+    effect: str | None,
+    kappa: float,
+    sp_kmh: float,
+    v_kmh,
+    *,
+    macro_sdq: float | None = None,
+    micro_contact_mm: float | None = None,
+    micro_sq_mm: float | None = None,
+    sq_ref_mm: float | None = None,
+) -> np.ndarray:
     """Multiplier on mu of a hidden effect that rides on texture (through the site's speed constant ``sp_kmh``,
-    km/h, from MPD) and speed ``v_kmh`` (km/h); 1 at 20 km/h, where the level is anchored:
+    km/h, from MPD, or a texture measure the workflow's texture model does not use) and speed ``v_kmh`` (km/h):
 
     * ``"squeeze"`` (partial hydroplaning: the water film squeezed out of the contact in less time at speed,
-      more so on shallow texture): ``max(0.05, 1 - kappa (v^2 - 20^2) / Sp^2)``;
+      more so on shallow texture): ``max(0.05, 1 - kappa (v^2 - 20^2) / Sp^2)``; 1 at 20 km/h;
     * ``"drainage"`` (an extra exponential loss, faster on shallow texture): ``exp(-kappa (v - 20) / Sp)``;
+      1 at 20 km/h;
+    * ``"hysteresis"`` (texture x speed: the rubber's hysteresis on the macrotexture grows with the excitation
+      frequency, i.e. with speed, and with the texture's rms slope): ``max(0.05, 1 + kappa (Sdq - SDQ_REF) (v -
+      20) / HYSTERESIS_SPAN_KMH)``, ``Sdq`` = ``macro_sdq`` (the macro band's rms slope, dimensionless); 1 at
+      20 km/h;
+    * ``"contact_micro"`` (a texture measure the table does not hold: the level is set by the microtexture on the
+      aggregate tops the slider touches, not by the whole-scan micro Sq): ``L(kappa micro_contact_mm) /
+      L(micro_sq_mm)`` at every speed, ``L`` = :func:`level_from_micro` with ``sq_ref_mm`` (kappa rescales the
+      contact measure to the micro Sq's scale);
     * ``None``: 1 (no effect).
 
     ``kappa`` dimensionless, >= 0."""
@@ -113,4 +139,13 @@ def hidden_factor(effect: str | None, kappa: float, sp_kmh: float, v_kmh) -> np.
         return np.maximum(0.05, 1.0 - kappa * (v * v - 400.0) / sp_kmh**2)
     if effect == "drainage":
         return np.exp(-kappa * (v - 20.0) / sp_kmh)
+    if effect == "hysteresis":
+        if macro_sdq is None:
+            raise ConfigError("friction hidden_effect hysteresis: needs the site's macro_sdq")
+        return np.maximum(0.05, 1.0 + kappa * (float(macro_sdq) - SDQ_REF) * (v - 20.0) / HYSTERESIS_SPAN_KMH)
+    if effect == "contact_micro":
+        if micro_contact_mm is None or micro_sq_mm is None or sq_ref_mm is None:
+            raise ConfigError("friction hidden_effect contact_micro: needs micro_contact_mm, micro_sq_mm, sq_ref_mm")
+        ratio = level_from_micro(kappa * float(micro_contact_mm), sq_ref_mm) / level_from_micro(micro_sq_mm, sq_ref_mm)
+        return np.full_like(v, ratio)
     raise ConfigError(f"friction hidden_effect: expected null or one of {', '.join(HIDDEN_EFFECTS)}, got {effect!r}")

@@ -15,7 +15,8 @@ Modules, each with the conventions that change its numbers (also in ``docs/regre
 
 * :mod:`.design`: feature columns and :class:`Design` (:func:`assemble_design`);
 * :mod:`.standardiser`: NaN and constant columns, standardisation (:class:`Standardiser`);
-* :mod:`.splits`: the train/test split (:func:`split_sites`) and the inner CV folds (:func:`inner_splits`);
+* :mod:`.splits`: the train/test split (:func:`split_sites`, the workflow's :func:`regression_split`) and the inner
+  CV folds (:func:`inner_splits`);
 * :mod:`.paths`: ridge, lasso, PLS paths and their choice by inner CV (one-standard-error rule);
 * :mod:`.pca`: the PCA regression, Tables 5 and 6 (:func:`fit_pca_regression`);
 * :mod:`.subset`: the ``ols2`` baseline (:func:`fit_subset_ols`);
@@ -82,7 +83,7 @@ from .physics import PHYSICS_COLUMNS, PHYSICS_OLS, PhysicsOLS, fit_physics_ols
 from .prediction import predict_parameters, predict_targets
 from .selection import CRITERIA, SIMPLICITY, best_model, rank_models
 from .skill import BASELINE_MODEL, MEAN_MODEL, baseline_notes, prediction_skill
-from .splits import inner_splits, split_sites
+from .splits import inner_splits, regression_split, split_sites
 from .standardiser import MAX_NAN_FRACTION, Standardiser
 from .subset import SUBSET_MAX_FEATURES, SUBSET_OLS, SubsetOLS, candidate_subsets, fit_subset_ols, subset_test_sse
 from .targets import (
@@ -154,6 +155,7 @@ __all__ = [
     "baseline_notes",
     "prediction_skill",
     "inner_splits",
+    "regression_split",
     "split_sites",
     "MAX_NAN_FRACTION",
     "Standardiser",

@@ -3,6 +3,8 @@ that choose hyper-parameters (:func:`inner_splits`).
 
 * **Split** (:func:`split_sites`): random (the study: 27/9), or whole groups (sections) to one side.
 * **Inner CV** (:func:`inner_splits`): leave-one-group-out when at least 3 groups are given, else seeded K-fold.
+* **The workflow's split** (:func:`regression_split`): :func:`split_sites` with the ``regression`` config section,
+  known when the workflow is parsed.
 """
 
 from __future__ import annotations
@@ -77,3 +79,22 @@ def split_sites(
     train_set = set(train)
     test = sorted(s for s in sites if s not in train_set)
     return sorted(train), test
+
+
+def regression_split(cfg: dict, sites: pd.DataFrame) -> tuple[list[str], list[str]]:
+    """The seeded train/test split of the regression stage from the ``regression`` config section ``cfg``.
+
+    ``cfg['n_test']`` sites are held out (the study: 9 of 36); for smaller campaigns the same share,
+    ``round(n * n_test / 36)``, at least 1 when there are 4 sites or more.
+    """
+    n = len(sites)
+    n_test = int(cfg.get("n_test", 9))
+    if n != 36:
+        n_test = int(round(n * n_test / 36.0))
+        n_test = max(1, n_test) if n >= 4 else 0
+    if n_test == 0:
+        return list(sites["site"]), []
+    train, test = split_sites(
+        sites, n_train=n - n_test, seed=int(cfg["seed"]), grouped_by=cfg.get("grouped_by") or None
+    )
+    return [str(s) for s in train], [str(s) for s in test]

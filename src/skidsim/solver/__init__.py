@@ -2,14 +2,14 @@
 
 Public API::
 
-    from skidsim.solver import SolverConfig, simulate, SimulationResult
+    from skidsim.solver import SolverConfig, simulate, simulate_batch, SimulationResult
     from skidsim.solver.surfaces import FlatPlane, TiltedPlane, SinusoidalSurface
 
 See docs/solver.md for the model, its verification and the presets.
 """
 
 from skidsim.solver.config import SolverConfig
-from skidsim.solver.explicit import material_from_config, max_frequency_power_iteration, simulate
+from skidsim.solver.explicit import material_from_config, max_frequency_power_iteration, simulate, simulate_batch
 from skidsim.solver.material import RubberMaterial
 from skidsim.solver.results import ENERGY_KEYS, SimulationResult, write_trace_parquet
 from skidsim.solver.surfaces import FlatPlane, RandomTexture, SinusoidalSurface, TiltedPlane
@@ -17,6 +17,7 @@ from skidsim.solver.surfaces import FlatPlane, RandomTexture, SinusoidalSurface,
 __all__ = [
     "SolverConfig",
     "simulate",
+    "simulate_batch",
     "SimulationResult",
     "RubberMaterial",
     "ENERGY_KEYS",

@@ -28,6 +28,8 @@ import math
 
 import numpy as np
 
+_TINY = np.finfo(float).tiny  # smallest normal double (looked up once: np.finfo costs a call per step)
+
 
 def return_map(f_trial_n: np.ndarray, limit_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Project trial tangential forces ``(3, n)`` (N) onto the discs ``|f| <= limit_n`` (N).
@@ -37,7 +39,7 @@ def return_map(f_trial_n: np.ndarray, limit_n: np.ndarray) -> tuple[np.ndarray, 
     mag = np.sqrt((f_trial_n * f_trial_n).sum(axis=0))
     stick = mag <= limit_n
     # min(1, limit / |f|): 1 inside the disc (also at |f| = 0), the radial scale-back outside
-    scale = np.minimum(1.0, limit_n / np.maximum(mag, np.finfo(float).tiny))
+    scale = np.minimum(1.0, limit_n / np.maximum(mag, _TINY))
     return f_trial_n * scale, stick
 
 

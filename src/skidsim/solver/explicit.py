@@ -37,6 +37,11 @@ Model (details and conventions in docs/solver.md):
   ``slide_length_mm``.
 * **Output**: SN = mean tangential / mean normal pavement force over the steady window; energy balance of the
   sliding phase; trace (parquet), optional VTU series.
+* **Code**: a preload loop and a slide loop (:func:`_preload`, :func:`_slide`) around :func:`_step`, which calls
+  the internal force, the damping, the contact laws of :mod:`skidsim.solver.contact` and the update in turn, on
+  preallocated buffers. **Batches** (:func:`simulate_batch`): runs on the same pavement with the same config share
+  the mesh and the time step and are stepped together, nodal arrays ``(3, nz+1, B, ny+1, nx+1)`` (the kernel's
+  batched layout); each member gets the SN of its single run bit for bit. :func:`simulate` is the batch of one.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +59,15 @@ from skidsim.errors import ConfigError
 from skidsim.friction import kmh_to_ms
 from skidsim.slidermesh import SliderMesh
 from skidsim.solver.config import SolverConfig
-from skidsim.solver.contact_friction import damped_step_factor, penalty_friction, rayleigh_coefficients
+from skidsim.solver.contact import (
+    Contact,
+    FrictionCoefficient,
+    Segments,
+    normal_contact,
+    penalty_step,
+    stick_limit_friction,
+)
+from skidsim.solver.contact_friction import damped_step_factor, rayleigh_coefficients
 from skidsim.solver.kernel import StructuredKernel, to_internal, to_mesh_layout
 from skidsim.solver.material import RubberMaterial, element_matrices, lumped_mass
 from skidsim.solver.results import SimulationResult, VtuSeriesWriter, write_trace_parquet
@@ -71,11 +85,6 @@ PHASES = ("internal_force", "damping_load", "contact", "friction", "update", "ou
 KU_REFRESH_STEPS = 1024
 
 
-def _spring_energy(force_n: np.ndarray, k_n_per_m: np.ndarray) -> float:
-    """Energy (J) stored in springs of stiffness ``k_n_per_m`` (n,) carrying forces ``force_n`` (3, n) (N)."""
-    return 0.5 * float(((force_n * force_n).sum(axis=0) / k_n_per_m).sum())
-
-
 def material_from_config(config: SolverConfig) -> RubberMaterial:
     """The :class:`RubberMaterial` of a :class:`SolverConfig`."""
     return RubberMaterial(
@@ -83,12 +92,17 @@ def material_from_config(config: SolverConfig) -> RubberMaterial:
     )
 
 
-def build_kernel(mesh: SliderMesh, material: RubberMaterial) -> StructuredKernel:
-    """Slicing kernel with the long-term elastic matrix and the Prony branches of ``material``."""
+def build_kernel(mesh: SliderMesh, material: RubberMaterial, *, batch: int = 1) -> StructuredKernel:
+    """Slicing kernel with the long-term elastic matrix and the Prony branches of ``material`` (``batch`` sliders)."""
     k_vol, k_dev = element_matrices(mesh.hx, mesh.hy, mesh.hz)
     k_inf = material.bulk_modulus_pa * k_vol + material.shear_modulus_pa * k_dev
     return StructuredKernel(
-        mesh, k_inf, k_dev_unit=k_dev, branch_g_pa=material.branch_shear_moduli_pa, branch_tau_s=material.prony_tau_s
+        mesh,
+        k_inf,
+        k_dev_unit=k_dev,
+        branch_g_pa=material.branch_shear_moduli_pa,
+        branch_tau_s=material.prony_tau_s,
+        batch=batch,
     )
 
 
@@ -155,45 +169,6 @@ def simulate(
     vtu_dir: str | Path | None = None,
     slope_bound: float | None = None,
 ) -> SimulationResult:
-    """Simulate one DFT slide of the rubber slider (see :func:`_simulate` for the parameters)."""
-    config = SolverConfig.reference() if config is None else config
-    limiter = None
-    if config.blas_threads is not None:
-        try:
-            from threadpoolctl import threadpool_limits
-
-            limiter = threadpool_limits(limits=int(config.blas_threads), user_api="blas")
-        except ImportError:  # pragma: no cover - optional
-            limiter = None
-    try:
-        return _simulate(
-            pavement,
-            speed_kmh,
-            law,
-            config,
-            y_offset_mm=y_offset_mm,
-            progress=progress,
-            trace_path=trace_path,
-            vtu_dir=vtu_dir,
-            slope_bound=slope_bound,
-        )
-    finally:
-        if limiter is not None:
-            limiter.restore_original_limits()
-
-
-def _simulate(
-    pavement,
-    speed_kmh: float,
-    law,
-    config: SolverConfig | None = None,
-    *,
-    y_offset_mm: float = 0.0,
-    progress=None,
-    trace_path: str | Path | None = None,
-    vtu_dir: str | Path | None = None,
-    slope_bound: float | None = None,
-) -> SimulationResult:
     """Simulate one DFT slide of the rubber slider over ``pavement`` at ``speed_kmh`` (km/h).
 
     Parameters
@@ -210,15 +185,122 @@ def _simulate(
     vtu_dir: if given, ``config.vtu_frames`` VTU frames of the slide (+ ``slider.pvd``) are written there.
     slope_bound: optional bound on ``|grad z|^2`` of the pavement for the time step (default: sampled).
     """
-    t_wall0 = time.perf_counter()
-    config = SolverConfig.reference() if config is None else config
-    if not (np.isfinite(speed_kmh) and speed_kmh > 0):
-        raise ConfigError(f"simulate: 'speed_kmh' expected > 0 km/h, got {speed_kmh!r}")
-    v_slide = float(kmh_to_ms(speed_kmh))
-    mat = material_from_config(config)
-    ext = pavement_extent_m(pavement)
+    return _with_blas_limit(
+        config,
+        lambda cfg: _run(
+            pavement, [speed_kmh], [law], cfg, y_offset_mm, progress, [trace_path], [vtu_dir], slope_bound
+        ),
+    )[0]
 
-    # ---- geometry and placement -------------------------------------------------------------------------------
+
+def simulate_batch(
+    pavement,
+    speeds_kmh,
+    laws,
+    config: SolverConfig | None = None,
+    *,
+    y_offset_mm: float = 0.0,
+    progress=None,
+    trace_paths=None,
+    slope_bound: float | None = None,
+) -> list[SimulationResult]:
+    """Simulate several slides over the same ``pavement`` with the same ``config`` at once (one result per member).
+
+    ``speeds_kmh`` (km/h) and ``laws`` (one law for all, or one per speed) define the members; they share the
+    mesh, the placement and the time step (which depend only on the pavement and the config) and are stepped
+    together: one kernel product, one contact evaluation and one set of NumPy calls per step for the whole batch
+    (leading member axis, :class:`skidsim.solver.kernel.StructuredKernel`). A member whose preload has converged
+    waits for the others; a member that has finished its slide leaves the batch. Each result equals
+    :func:`simulate` of that member bit for bit (SN, trace, step counts; energies to rounding, ~1e-15 relative),
+    except ``wall_s``: the batch's wall time shared in proportion to the members' steps. ``trace_paths``: one
+    path (or None) per member. Other parameters as :func:`simulate`.
+    """
+    speeds = [float(s) for s in np.atleast_1d(np.asarray(speeds_kmh, dtype=float))]
+    laws = list(laws) if isinstance(laws, list | tuple) else [laws] * len(speeds)
+    if len(laws) != len(speeds):
+        raise ConfigError(f"simulate_batch: {len(laws)} laws for {len(speeds)} speeds")
+    if not speeds:
+        return []
+    paths = [None] * len(speeds) if trace_paths is None else list(trace_paths)
+    return _with_blas_limit(
+        config,
+        lambda cfg: _run(pavement, speeds, laws, cfg, y_offset_mm, progress, paths, [None] * len(speeds), slope_bound),
+    )
+
+
+def _with_blas_limit(config, fn):
+    config = SolverConfig.reference() if config is None else config
+    limiter = None
+    if config.blas_threads is not None:
+        try:
+            from threadpoolctl import threadpool_limits
+
+            limiter = threadpool_limits(limits=int(config.blas_threads), user_api="blas")
+        except ImportError:  # pragma: no cover - optional
+            limiter = None
+    try:
+        return fn(config)
+    finally:
+        if limiter is not None:
+            limiter.restore_original_limits()
+
+
+# ---- the model the members share ------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Model:
+    """What the members of a batch share (SI units): slider mesh and placement, masses, stiffness, contact
+    constants, time step and step counts of the preload. Nodal arrays in the internal layout of one slider."""
+
+    config: SolverConfig
+    pavement: object
+    bound: SurfaceBound | None
+    mesh: SliderMesh
+    material: RubberMaterial
+    k_inf: np.ndarray  # 24 x 24 long-term element stiffness, N/m
+    X: np.ndarray  # (3, nz+1, ny+1, nx+1) reference coordinates, m
+    mass: np.ndarray  # (nz+1, ny+1, nx+1) lumped masses, kg
+    area_b: np.ndarray  # (ny+1, nx+1) tributary areas of the bottom nodes, m^2
+    k_pen: np.ndarray  # (ny+1, nx+1) normal penalty, N/m
+    k_fric: np.ndarray  # (ny+1, nx+1) tangential penalty, N/m
+    f_top: np.ndarray  # (ny+1, nx+1) dead load per top node, N
+    m_holder: float  # kg
+    c_holder: float  # N s/m
+    slide_m: float
+    clamped: bool
+    slope_bound: float
+    omega_el: float  # rad/s
+    omega: float  # rad/s
+    dt: float  # s
+    alpha_r: float  # 1/s
+    beta_r: float  # s
+    n_pre_max: int
+    n_ramp: int
+    n_check: int
+    t_ramp: float  # s
+
+    @property
+    def n_face(self) -> int:
+        return self.area_b.size
+
+    @property
+    def rayleigh(self) -> bool:
+        return self.config.slide_damping_model == "rayleigh"
+
+    @property
+    def incremental_ku(self) -> bool:
+        """Elastic slider with Rayleigh damping: one kernel product per sliding step, ``K v(n-1/2)``, serves both
+        the damping force ``-beta K v`` and ``K u(n) = K u(n-1) + dt K v(n-1/2)`` (linear in u; recomputed from u
+        every ``KU_REFRESH_STEPS`` steps so that rounding cannot accumulate). With Prony terms the force is not
+        linear in u alone (history), so there the damping has its own product."""
+        return self.rayleigh and not self.config.prony_g
+
+
+def _place_slider(pavement, config: SolverConfig, y_offset_mm: float):
+    """Mesh, reference coordinates (internal layout, bottom face on the highest point under it) and slide length
+    (m, clamped to the strip if allowed) of the slider ``edge_margin_mm`` after ``x_min``."""
+    ext = pavement_extent_m(pavement)
     L, W = config.slider_length_mm * 1e-3, config.slider_width_mm * 1e-3
     margin = config.edge_margin_mm * 1e-3
     x0 = ext[0] + margin
@@ -240,7 +322,6 @@ def _simulate(
                 f"{config.slider_length_mm} mm slider with {config.edge_margin_mm} mm margins)"
             )
         slide, clamped = available, True
-
     mesh = SliderMesh.box(
         config.slider_length_mm,
         config.slider_width_mm,
@@ -254,416 +335,698 @@ def _simulate(
     if not np.all(np.isfinite(zs0)):
         raise ConfigError("simulate: the pavement returned non-finite heights under the slider's start position")
     X[2] += zs0.max()  # bottom face touches the highest point under its nodes
+    swept = (x0, min(ext[1], x0 + L + slide), y0, y0 + W)
+    return mesh, X, slide, clamped, swept
 
-    # ---- masses, stiffness, loads ---------------------------------------------------------------------------------
+
+def _build_model(pavement, config: SolverConfig, y_offset_mm: float, slope_bound: float | None) -> _Model:
+    """Slider, masses, stiffness, loads and the stable time step (docs/solver.md, "time step")."""
+    mat = material_from_config(config)
+    mesh, X, slide, clamped, swept = _place_slider(pavement, config, y_offset_mm)
     mass = to_internal(lumped_mass(mesh, mat.density_kg_m3 * config.mass_scaling))
-    minv = 1.0 / mass
-    kern = build_kernel(mesh, mat)
+    k_vol, k_dev = element_matrices(mesh.hx, mesh.hy, mesh.hz)
     area_b = mesh.nodal_tributary_area_bottom().T.copy()  # (ny+1, nx+1) m^2
     h_pen = mesh.hz if config.penalty_length_mm is None else config.penalty_length_mm * 1e-3  # m
     k_pen = config.penalty_scale * mat.youngs_modulus_pa * area_b / h_pen  # N/m per bottom node
-    f_top = -config.load_n * area_b / area_b.sum()  # N per top node (same tributary pattern)
-    m_b = mass[0]
-    m_holder = float(mass[-1].sum())  # the top face moves as one rigid holder in z
-    vz_holder = 0.0
-    c_holder = config.holder_damping_per_s * float(mass.sum())  # N s/m
     omega_el = max_frequency_power_iteration(mesh, mat, mass)
     if slope_bound is None:
-        slope_bound = _max_slope_sq(
-            pavement, x0, min(ext[1], x0 + L + slide), y0, y0 + W, spacing_m=min(mesh.hx, mesh.hy) / 4
-        )
+        slope_bound = _max_slope_sq(pavement, *swept, spacing_m=min(mesh.hx, mesh.hy) / 4)
     normal_gap = config.contact_gap == "normal"
-    fric_penalty = config.friction_model == "penalty"
     k_fric = config.friction_stiffness_pa_per_m * area_b  # N/m per bottom node (penalty friction)
     # normal stiffness of the contact: k (1 + |grad z|^2) for the vertical gap, k for the normal gap; the
     # tangential penalty k_t acts in the tangent plane, orthogonal to it: the node's largest eigenvalue is the max
     k_contact = k_pen * (1.0 if normal_gap else 1.0 + slope_bound)
-    if fric_penalty:
+    if config.friction_model == "penalty":
         k_contact = np.maximum(k_contact, k_fric)
-    omega_pen_sq = float(np.max(k_contact / m_b))
-    omega = math.sqrt(omega_el**2 + omega_pen_sq)
+    omega = math.sqrt(omega_el**2 + float(np.max(k_contact / mass[0])))
     dt = config.dt_safety * 2.0 / omega
     rayleigh = config.slide_damping_model == "rayleigh"
     alpha_r, beta_r = rayleigh_coefficients(config.loss_factor, config.loss_band_hz) if rayleigh else (0.0, 0.0)
-    kern_beta = None
-    # elastic slider with Rayleigh damping: one kernel product per sliding step, K v(n-1/2), serves both the
-    # damping force -beta K v and K u(n) = K u(n-1) + dt K v(n-1/2) (linear in u; recomputed from u every
-    # KU_REFRESH_STEPS steps so that rounding cannot accumulate). With Prony terms the force is not linear in u
-    # alone (history), so there the damping has its own product.
-    incremental_ku = rayleigh and not kern.g.size
     if rayleigh:
         dt *= damped_step_factor(omega, alpha_r, beta_r)
-        if not incremental_ku:
-            kern_beta = StructuredKernel(mesh, beta_r * kern.k)  # stiffness-proportional damping, N s/m
-
     n_pre_max = max(1, int(math.ceil(config.preload_time_s / dt)))
     n_ramp = min(n_pre_max, max(1, int(math.ceil(config.preload_ramp_s / dt))))
-    n_check = max(1, int(math.ceil(config.preload_check_s / dt)))
-    n_slide = max(1, int(math.ceil(slide / (v_slide * dt))))
-    n_pre = n_pre_max  # lowered when the preload has converged
-    n_total = n_pre + n_slide
-    t_ramp = n_ramp * dt
-    fz_prev_check = None
-    c_cached = None
-    neg_cm = None
+    return _Model(
+        config=config,
+        pavement=pavement,
+        bound=SurfaceBound.of(pavement),  # per-cell upper bound of the surface (None: every node is a candidate)
+        mesh=mesh,
+        material=mat,
+        k_inf=mat.bulk_modulus_pa * k_vol + mat.shear_modulus_pa * k_dev,
+        X=X,
+        mass=mass,
+        area_b=area_b,
+        k_pen=k_pen,
+        k_fric=k_fric,
+        f_top=-config.load_n * area_b / area_b.sum(),  # N per top node (same tributary pattern)
+        m_holder=float(mass[-1].sum()),  # the top face moves as one rigid holder in z
+        c_holder=config.holder_damping_per_s * float(mass.sum()),
+        slide_m=slide,
+        clamped=clamped,
+        slope_bound=float(slope_bound),
+        omega_el=omega_el,
+        omega=omega,
+        dt=dt,
+        alpha_r=alpha_r,
+        beta_r=beta_r,
+        n_pre_max=n_pre_max,
+        n_ramp=n_ramp,
+        n_check=max(1, int(math.ceil(config.preload_check_s / dt))),
+        t_ramp=n_ramp * dt,
+    )
 
-    # ---- state ---------------------------------------------------------------------------------------------------
-    u = np.zeros_like(X)
-    v = np.zeros_like(X)
-    f = np.zeros_like(X)
-    fint = np.zeros_like(X)
-    tmp = np.zeros_like(X)
-    fdamp = np.zeros_like(X)
-    fbeta = np.zeros_like(X) if kern_beta is not None else None
-    nku = np.zeros_like(X) if incremental_ku else None  # -K u(n), N
-    nkv = np.zeros_like(X) if incremental_ku else None  # -K v(n-1/2), N/s
-    dt_minv = dt * minv[None]
-    # bottom face as flat views (3, (ny+1)(nx+1)): each component's face block is contiguous in the layout
-    ub, vb, fb = u[:, 0].reshape(3, -1), v[:, 0].reshape(3, -1), f[:, 0].reshape(3, -1)
-    assert np.shares_memory(ub, u) and np.shares_memory(vb, v) and np.shares_memory(fb, f)
-    Xb = X[:, 0].reshape(3, -1)
-    m_bf = m_b.ravel()
-    k_pen_f = k_pen.ravel()
-    k_fric_f = k_fric.ravel()
-    k_fric_dt_f = k_fric_f * dt  # N s/m: the tangential penalty on a velocity over one step
-    ft_state = np.zeros((3, m_bf.size))  # penalty friction: tangential force per bottom node, N
-    fric_energy = 0.0  # J stored in the tangential penalty springs
-    area_bf = area_b.ravel()
-    inv_mb_dt = dt / m_bf
-    mb_over_dt = m_bf / dt
-    bound = SurfaceBound.of(pavement)  # per-cell upper bound of the surface (None: every node is a candidate)
-    all_nodes = np.arange(m_bf.size)
 
-    every = int(config.trace_every)
-    n_rec = (n_slide + every - 1) // every
-    rec_t = np.empty(n_rec)
-    rec_x = np.empty(n_rec)
-    rec_ft = np.empty(n_rec)
-    rec_fn = np.empty(n_rec)
-    rec_a = np.empty(n_rec)
-    rec_ff = np.empty(n_rec)
-    rec_nc = np.empty(n_rec, dtype=np.int64)
-    rec_ns = np.empty(n_rec, dtype=np.int64)
-    rec_sl = np.empty(n_rec)
+# ---- the state of the members stepped together ----------------------------------------------------------------------
 
-    e = dict(external=0.0, friction=0.0, damping=0.0, viscous=0.0)
-    state0 = {}
-    vtu = VtuSeriesWriter(vtu_dir, mesh) if vtu_dir is not None else None
-    vtu_steps = set()
-    if vtu is not None:
-        vtu_steps = set(np.unique(np.linspace(0, n_slide - 1, int(config.vtu_frames)).round().astype(int)).tolist())
-    max_pen = 0.0
-    preload_force = preload_area = 0.0
-    fz_sum = area_now = pen_energy = 0.0  # contact force (N), area (m^2), penalty energy (J) of the last step
-    last_log = t_wall0
-    fric = np.zeros((3, 0))
-    fcn = np.zeros((3, 0))
-    ia = all_nodes[:0]
-    n_stick = 0
-    N = np.zeros(0)
+
+class _Batch:
+    """State of the members stepped together. Nodal arrays ``(3, nz+1, B, ny+1, nx+1)`` (the kernel's batched
+    layout), the bottom faces as flat views ``(3, B * n_face)``, one entry per member in the 1-d arrays."""
+
+    NODAL = ("u", "v", "nku", "nkv")  # carried nodal state (f, tmp, fdamp, fbeta, fint are per-step scratch)
+    MEMBER = ("ids", "v_slide", "vz", "fz_sum", "area_now", "pen_energy", "prev_ok", "max_pen")
+    ENERGY = ("external", "friction", "damping", "viscous")
+
+    def __init__(self, m: _Model, ids, v_slide, laws):
+        self.m, self.n = m, len(ids)
+        shape = (3, m.mesh.nz + 1, self.n, m.mesh.ny + 1, m.mesh.nx + 1)
+        self.u, self.v = np.zeros(shape), np.zeros(shape)
+        self.nku = np.zeros(shape) if m.incremental_ku else None  # -K u(n), N
+        self.nkv = np.zeros(shape) if m.incremental_ku else None  # -K v(n-1/2), N/s
+        self.ft_state = np.zeros((3, self.n * m.n_face))  # penalty friction: tangential force per bottom node, N
+        self.ids, self.v_slide, self.laws = np.asarray(ids), np.asarray(v_slide, dtype=float), list(laws)
+        for name in self.MEMBER[2:]:
+            setattr(self, name, np.zeros(self.n))
+        self.prev_ok = np.zeros(self.n, dtype=bool)  # the last preload check was within tolerance
+        self.e = {k: np.zeros(self.n) for k in self.ENERGY}  # J, accumulated over the slide (floats for one member)
+        self.kern = build_kernel(m.mesh, m.material, batch=self.n)
+        self._derive()
+
+    def _derive(self) -> None:
+        """Scratch arrays, bottom-face views and the per-node constants tiled over the members."""
+        m, n = self.m, self.n
+        shape = self.u.shape
+        self.f, self.tmp, self.fdamp, self.fint = (np.zeros(shape) for _ in range(4))
+        self.kern_beta = None  # stiffness-proportional damping with Prony terms: its own product, N s/m
+        if m.rayleigh and not m.incremental_ku:
+            self.kern_beta = StructuredKernel(m.mesh, m.beta_r * m.k_inf, batch=n)
+        self.fbeta = np.zeros(shape) if self.kern_beta is not None else None
+        self.mu = FrictionCoefficient(self.laws)
+        self.ub, self.vb, self.fb = (a[:, 0].reshape(3, -1) for a in (self.u, self.v, self.f))
+        assert np.shares_memory(self.ub, self.u) and np.shares_memory(self.fb, self.f)
+        self.Xb = np.tile(m.X[:, 0].reshape(3, -1), (1, n))
+        self.xyz_b = np.empty_like(self.Xb)
+        self.k_pen_f = np.tile(m.k_pen.ravel(), n)
+        self.k_fric_f = np.tile(m.k_fric.ravel(), n)
+        self.k_fric_dt_f = self.k_fric_f * m.dt  # N s/m: the tangential penalty on a velocity over one step
+        m_bf = np.tile(m.mass[0].ravel(), n)
+        self.inv_mb_dt, self.mb_over_dt = m.dt / m_bf, m_bf / m.dt
+        self.area_bf = np.tile(m.area_b.ravel(), n)
+        self.all_nodes = np.arange(n * m.n_face)
+        lo = int(self.ids[0])  # rows of the members in the output's per-member arrays: a slice when contiguous
+        contiguous = np.array_equal(self.ids, np.arange(lo, lo + n))
+        self.rows = slice(lo, lo + n) if contiguous else self.ids
+        self.dt_minv = m.dt * (1.0 / m.mass)[:, None]
+        # per-member reductions: Python floats for a batch of one (the single run's IEEE operations, without the
+        # cost of 1-element arrays), arrays over the members otherwise
+        self.one = n == 1
+        if self.one:
+            self.e = {k: float(np.atleast_1d(v)[0]) for k, v in self.e.items()}
+            self.vx1 = float(self.v_slide[0])
+            self.mdot, self.msum = _vdot, _sum
+        else:
+            self.mdot, self.msum = self._mdot, self._msum
+
+    def _assemble(self, parts, kern) -> _Batch:
+        new = object.__new__(_Batch)
+        new.m, new.kern = self.m, kern
+        for name in self.NODAL:
+            arrs = [getattr(p, name) for p in parts]
+            setattr(new, name, None if arrs[0] is None else np.ascontiguousarray(np.concatenate(arrs, axis=2)))
+        new.n = new.u.shape[2]
+        new.ft_state = np.concatenate([p.ft_state.reshape(3, p.n, -1) for p in parts], axis=1).reshape(3, -1)
+        for name in self.MEMBER:
+            setattr(new, name, np.concatenate([getattr(p, name) for p in parts]))
+        new.e = {k: np.concatenate([np.atleast_1d(p.e[k]) for p in parts]) for k in self.ENERGY}
+        new.laws = [law for p in parts for law in p.laws]
+        new._derive()
+        return new
+
+    def take(self, sel) -> _Batch:
+        """The batch of the members selected by the boolean mask ``sel`` (self if all)."""
+        idx = np.flatnonzero(sel)
+        if idx.size == self.n:
+            return self
+        part = object.__new__(_Batch)
+        part.n, part.laws = idx.size, [self.laws[i] for i in idx]
+        for name in self.NODAL:
+            a = getattr(self, name)
+            setattr(part, name, None if a is None else a[:, :, idx])
+        part.ft_state = self.ft_state.reshape(3, self.n, -1)[:, idx].reshape(3, -1)
+        for name in self.MEMBER:
+            setattr(part, name, getattr(self, name)[idx])
+        part.e = {k: np.atleast_1d(v)[idx] for k, v in self.e.items()}
+        return self._assemble([part], self.kern.take(idx))
+
+    @staticmethod
+    def concat(batches: list[_Batch]) -> _Batch:
+        """One batch of the members of ``batches``, in order of their ids."""
+        batches = sorted(batches, key=lambda p: int(p.ids[0]))
+        if len(batches) == 1:
+            return batches[0]
+        return batches[0]._assemble(batches, StructuredKernel.concat([p.kern for p in batches]))
+
+    def _mdot(self, a: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Per-member ``a . c`` of two nodal arrays (``self.mdot``; a float, ``np.vdot``, for one member)."""
+        s = (a.shape[0] * a.shape[1], self.n, -1)
+        return np.einsum("kbj,kbj->b", a.reshape(s), c.reshape(s))
+
+    def _msum(self, comp: np.ndarray) -> np.ndarray:
+        """Per-member sum of one component ``(nz+1, B, ny+1, nx+1)`` of a nodal array (``self.msum``)."""
+        return comp.sum(axis=(0, 2, 3))
+
+    def kinetic(self) -> np.ndarray:
+        w = (self.v * self.v).sum(axis=0)
+        if self.n == 1:
+            return np.array([0.5 * np.vdot(self.m.mass, w)])
+        nz1 = w.shape[0]
+        return 0.5 * np.einsum("kbj,kj->b", w.reshape(nz1, self.n, -1), self.m.mass.reshape(nz1, -1))
+
+    def friction_elastic(self) -> np.ndarray:
+        """Energy (J) stored in the tangential penalty springs of each member (0 with the stick limit)."""
+        if self.m.config.friction_model != "penalty":
+            return np.zeros(self.n)
+        ft = self.ft_state
+        return 0.5 * ((ft * ft).sum(axis=0) / self.k_fric_f).reshape(self.n, -1).sum(axis=1)
+
+
+# ---- one step: internal force, damping, contact, friction, holder, update --------------------------------------------
+
+
+@dataclass
+class _Phase:
+    """Preload (ramped load, dashpots to the ground) or slide (dashpots to the holder frame, slide damping)."""
+
+    sliding: bool
+    c_per_s: float  # mass-proportional dashpot coefficient, 1/s
+    neg_cm: np.ndarray  # -c m (kg/s), (nz+1, 1, ny+1, nx+1): broadcast over the members
+
+    @classmethod
+    def of(cls, m: _Model, sliding: bool) -> _Phase:
+        cfg = m.config
+        c = (m.alpha_r if m.rayleigh else cfg.slide_damping_per_s) if sliding else cfg.preload_damping_per_s
+        return cls(sliding, c, (-c * m.mass)[:, None])
+
+
+@dataclass
+class _StepOut:
+    """Contact of the step and the per-member sums that enter the trace (N, m^2). A batch of one sums only what
+    each step needs (``fz``, ``area``: floats) and leaves ``sums`` None (the trace row sums its own)."""
+
+    contact: Contact
+    fric: np.ndarray
+    stick: np.ndarray
+    s: np.ndarray
+    seg: Segments
+    sums: np.ndarray | None  # rows: contact force x, z; friction x, z; contact area; normal force N
+    fz: np.ndarray | float  # pavement force on the slider in z, N
+    area: np.ndarray | float  # contact area, m^2
+
+
+class _Clock:
+    """Wall time per phase of the step (``PHASES``) and progress reports."""
+
+    def __init__(self, config: SolverConfig, progress):
+        self.t0 = self.last_log = time.perf_counter()
+        self.ph = [0.0] * len(PHASES)
+        self.every_s, self.progress = config.progress_every_s, progress
+        self.t = self.t0
+
+    def lap(self, phase: int) -> None:
+        now = time.perf_counter()
+        self.ph[phase] += now - self.t
+        self.t = now
+
+    def report(self, done: int, total: int) -> None:
+        now = self.t
+        if now - self.last_log < self.every_s:
+            return
+        self.last_log = now
+        el = now - self.t0
+        eta = el / done * (total - done)
+        log.info("step %d/%d (%.0f %%), %.1f s elapsed, %.1f s left", done, total, 100.0 * done / total, el, eta)
+        if self.progress is not None:
+            self.progress(done, total, el, eta)
+
+
+def _internal_force(m: _Model, b: _Batch, ph: _Phase, k: int, load_factor: float) -> None:
+    """``f = -f_int`` (and the Rayleigh stiffness part ``-beta K v``) at u(n), the Prony update, the dead load."""
+    if ph.sliding and m.incremental_ku:
+        b.kern.force(b.v, b.nkv, negate=True)
+        if k % KU_REFRESH_STEPS == 0:
+            b.kern.force(b.u, b.nku, negate=True)
+        else:
+            np.multiply(b.nkv, m.dt, out=b.tmp)
+            b.nku += b.tmp
+        np.multiply(b.nkv, m.beta_r, out=b.f)  # the Rayleigh stiffness part -beta K v, here rather than below
+        b.f += b.nku
+    else:
+        b.kern.force(b.u, b.f, negate=True)  # f = -f_int, bit for bit
+    if b.kern.g.size:
+        diss = b.kern.relax(m.dt)
+        if ph.sliding:
+            b.e["viscous"] += float(diss[0]) if b.one else diss
+    b.f[2, -1] += load_factor * m.f_top
+
+
+def _damping_force(b: _Batch, ph: _Phase) -> None:
+    """Mass-proportional dashpots (velocity relative to the frame) and, with Prony terms, ``-beta K v``.
+
+    Sliding: dashpots to the holder (moving with (v_slide, 0, vz_holder)), so the rigid vertical motion that follows
+    the texture is not resisted; preload: to the ground (dynamic relaxation of the whole slider).
+    """
+    if ph.c_per_s > 0:
+        np.multiply(b.v, ph.neg_cm, out=b.fdamp)  # -c m (v - v_frame), frame terms on two components
+        if ph.sliding:
+            b.fdamp[0] -= (b.vx1 if b.one else b.v_slide[:, None, None]) * ph.neg_cm
+            if b.one:
+                if b.vz[0] != 0.0:
+                    b.fdamp[2] -= float(b.vz[0]) * ph.neg_cm
+            elif np.any(b.vz != 0.0):
+                b.fdamp[2] -= b.vz[:, None, None] * ph.neg_cm
+        b.f += b.fdamp
+    if ph.sliding and b.kern_beta is not None:  # -beta K v: rigid (frame) motion is in K's null space
+        b.kern_beta.force(b.v, b.fbeta, negate=True)
+        b.f += b.fbeta
+
+
+def _contact_and_friction(m: _Model, b: _Batch, clock: _Clock) -> _StepOut:
+    """Penalty contact on the candidate nodes, then friction (stick limit or penalty with return mapping)."""
+    fb, vb = b.fb, b.vb
+    xb, yb, zb = np.add(b.Xb, b.ub, out=b.xyz_b)  # current positions of the bottom nodes, m
+    c = normal_contact(m.pavement, m.bound, xb, yb, zb, b.k_pen_f, m.config.contact_gap == "normal", b.all_nodes)
+    ia = c.ia
+    fb[:, ia] += c.force_n
+    clock.lap(2)
+    seg = Segments(ia, m.n_face, b.n)
+    if b.mu.shared:
+        mu = b.mu.laws[0].mu
+    else:
+
+        def mu(s):
+            return b.mu(s, seg)
+
+    if m.config.friction_model == "penalty":
+        fric, stick, s = penalty_step(b.ft_state, vb[:, ia], b.k_fric_dt_f[ia], c, mu)
+    else:
+        fric, stick, s = stick_limit_friction(vb[:, ia], fb[:, ia], b.inv_mb_dt[ia], b.mb_over_dt[ia], c, mu)
+    fb[:, ia] += fric
+    if b.one:
+        fz = float(_add(c.force_n[2], None) + _add(fric[2], None))
+        out = _StepOut(c, fric, stick, s, seg, None, fz, float(_add(b.area_bf[ia], None)))
+    else:
+        rows = np.stack([c.force_n[0], c.force_n[2], fric[0], fric[2], b.area_bf[ia], c.normal_n])
+        sums = seg.sums(rows)
+        out = _StepOut(c, fric, stick, s, seg, sums, sums[1] + sums[3], sums[4])
+    clock.lap(3)
+    return out
+
+
+def _advance(m: _Model, b: _Batch, ph: _Phase, st: _StepOut) -> None:
+    """Rigid holder (top x/y velocity prescribed, one common z velocity), velocities, positions, energies.
+
+    The per-member scalars are arrays over the members, or Python floats for a batch of one (the same IEEE
+    operations, without the cost of 1-element arrays).
+    """
+    one = b.one
+    if one:  # net x and z forces on the top face
+        fx_top, fz_holder = float(_add(b.f[0, -1], None)), float(_add(b.f[2, -1], None))
+        vz_old, vx = float(b.vz[0]), b.vx1
+    else:
+        fx_top, fz_holder = b.f[::2, -1].reshape(2, b.n, -1).sum(axis=2)
+        vz_old, vx = b.vz, b.v_slide
+    react_x = -fx_top  # reaction = -(net force) there
+    fz_hd = -m.c_holder * vz_old if ph.sliding else (0.0 if one else np.zeros(b.n))  # holder dashpot to the ground
+    vz = vz_old + m.dt * (fz_holder + fz_hd) / m.m_holder
+    if ph.sliding:
+        ia = st.contact.ia
+        vb_old = b.vb[:, ia]
+        if ph.c_per_s > 0:
+            fd_dot_v_old = b.mdot(b.fdamp, b.v)  # avoids copying v: f_d.(v_old + v_new) in two dots
+        if b.fbeta is not None:
+            fb_dot_v_old = b.mdot(b.fbeta, b.v)
+        elif b.nkv is not None:
+            fb_dot_v_old = m.beta_r * b.mdot(b.nkv, b.v)
+    np.multiply(b.f, b.dt_minv, out=b.tmp)
+    b.v += b.tmp
+    b.v[0, -1] = (vx if one else vx[:, None, None]) if ph.sliding else 0.0
+    b.v[1, -1] = 0.0
+    b.v[2, -1] = vz if one else vz[:, None, None]
+    if one:
+        b.vz[0] = vz
+    else:
+        b.vz = vz
+    if ph.sliding:
+        h = 0.5 * m.dt
+        e = b.e
+        vz_sum = vz_old + vz
+        e["external"] += h * (-m.config.load_n * vz_sum + react_x * 2.0 * vx)
+        e["damping"] -= h * fz_hd * vz_sum
+        e["friction"] -= h * (_vdot if one else st.seg.dot)(st.fric, vb_old + b.vb[:, ia])
+        if ph.c_per_s > 0:
+            # dashpots between each node and the frame (vx, 0, vz_old): they dissipate c m |w|^2 (w = velocity
+            # relative to the frame, >= 0), the holder feeds them f_d . v_frame
+            fd_frame = 2.0 * (vx * b.msum(b.fdamp[0]) + vz_old * b.msum(b.fdamp[2]))
+            e["damping"] -= h * (fd_dot_v_old + b.mdot(b.fdamp, b.v) - fd_frame)
+            e["external"] += h * fd_frame
+        if b.fbeta is not None:
+            e["damping"] -= h * (fb_dot_v_old + b.mdot(b.fbeta, b.v))
+        elif b.nkv is not None:  # the Rayleigh stiffness part -beta K v(n-1/2) is beta * nkv
+            e["damping"] -= h * (fb_dot_v_old + m.beta_r * b.mdot(b.nkv, b.v))
+    np.multiply(b.v, m.dt, out=b.tmp)
+    b.u += b.tmp
+    c = st.contact
+    if one:
+        b.fz_sum[0], b.area_now[0], b.pen_energy[0] = st.fz, st.area, 0.5 * float(np.dot(c.kd_n, c.d_m))
+    else:
+        b.fz_sum, b.area_now, b.pen_energy = st.fz, st.area, 0.5 * st.seg.dot(c.kd_n, c.d_m)
+
+
+def _vdot(a: np.ndarray, c: np.ndarray) -> float:
+    """``a . c`` of a batch of one (``_Batch.mdot``)."""
+    return float(np.vdot(a, c))
+
+
+def _sum(a: np.ndarray) -> float:
+    """Sum of a batch of one (``_Batch.msum``)."""
+    return float(_add(a, None))
+
+
+#: ``np.add.reduce``: what ``ndarray.sum()`` calls (the same pairwise sum), without its Python wrapper
+_add = np.add.reduce
+
+
+def _step(m: _Model, b: _Batch, ph: _Phase, k: int, load_factor: float, clock: _Clock) -> _StepOut:
+    """One central-difference step of every member of ``b`` (``k``: step index within the phase)."""
+    clock.lap(5)
+    _internal_force(m, b, ph, k, load_factor)
+    clock.lap(0)
+    _damping_force(b, ph)
+    clock.lap(1)
+    st = _contact_and_friction(m, b, clock)
+    _advance(m, b, ph, st)
+    clock.lap(4)
+    return st
+
+
+# ---- the two phases -------------------------------------------------------------------------------------------------
+
+
+def _preload(m: _Model, b: _Batch, out: _Output, clock: _Clock) -> _Batch:
+    """Dynamic relaxation under the ramped load; a member leaves when its contact force is within tolerance of the
+    load at two checks in a row (or after ``n_pre_max`` steps). Returns the preloaded members, in order."""
+    ph = _Phase.of(m, sliding=False)
+    cfg = m.config
+    done = []
+    n_total = m.n_pre_max + int(out.n_slide.max())
+    for k in range(m.n_pre_max):
+        _step(m, b, ph, k, _ramp(k * m.dt, m.t_ramp), clock)
+        check = k >= m.n_ramp and (k - m.n_ramp) % m.n_check == 0
+        clock.lap(5)
+        clock.report(k + 1, n_total)
+        if not check and k + 1 < m.n_pre_max:
+            continue
+        leave = np.full(b.n, k + 1 == m.n_pre_max)
+        if check:
+            ok = np.abs(b.fz_sum - cfg.load_n) <= cfg.preload_tolerance * cfg.load_n
+            leave |= ok & b.prev_ok & (k + 1 < m.n_pre_max)
+            b.prev_ok = ok
+        if leave.any():
+            out.n_pre[b.ids[leave]] = k + 1
+            done.append(b.take(leave))
+            if leave.all():
+                break
+            b = b.take(~leave)
+    return _Batch.concat(done)
+
+
+def _slide(m: _Model, b: _Batch, out: _Output, clock: _Clock) -> None:
+    """Every node gets the test speed in x, the holder slides; a member leaves when it has slid its length."""
     log.info(
-        "simulate: %d elements, dt %.3g us, <= %d preload + %d slide steps at %.1f km/h over %.1f mm",
-        mesh.n_elements,
-        dt * 1e6,
-        n_pre,
-        n_slide,
-        speed_kmh,
-        slide * 1e3,
+        "preload: contact force %s N (load %.4f N) after %s steps",
+        np.array2string(b.fz_sum, precision=4),
+        m.config.load_n,
+        out.n_pre[b.ids],
     )
+    out.start_slide(b)
+    ph = _Phase.of(m, sliding=True)
+    n_done = int(out.n_pre.max())
+    n_slide = out.n_slide[b.ids]
+    n_total, next_leave = n_done + int(n_slide.max()), int(n_slide.min())  # the longest slide leaves last
+    for i in range(int(n_slide.max())):
+        st = _step(m, b, ph, i, 1.0, clock)
+        out.record(b, st, i)
+        clock.lap(5)
+        clock.report(n_done + i + 1, n_total)
+        if i + 1 < next_leave:
+            continue
+        leave = n_slide == i + 1
+        out.finish(b.take(leave))
+        if leave.all():
+            break
+        b = b.take(~leave)
+        n_slide = out.n_slide[b.ids]
+        next_leave = int(n_slide.min())
 
-    rec = 0
-    step = -1
-    perf = time.perf_counter
-    ph = [0.0] * 6  # wall s per phase: internal force, damping + load, contact, friction, update, output
-    while step + 1 < n_total:
-        step += 1
-        sliding = step >= n_pre
-        if step == n_pre:  # ---- start of sliding: every node gets the test speed
-            preload_force, preload_area = fz_sum, area_now
-            log.info(
-                "preload: contact force %.4f N (load %.4f N) after %d steps (%.3g ms)",
-                preload_force,
-                config.load_n,
-                n_pre,
-                n_pre * dt * 1e3,
-            )
-            v[0] += v_slide
-            kern.force(u, fint)
-            if fric_penalty:
-                fric_energy = _spring_energy(ft_state, k_fric_f)
-            state0 = dict(
-                kinetic=0.5 * float(np.vdot(mass, (v * v).sum(axis=0))),
-                strain=kern.strain_energy(),
-                contact=pen_energy,
-                friction_elastic=fric_energy,
-            )
-        # ---- internal force (and Prony history) at u(n)
-        t_a = perf()
-        if sliding and incremental_ku:
-            kern.force(v, nkv, negate=True)
-            if (step - n_pre) % KU_REFRESH_STEPS == 0:
-                kern.force(u, nku, negate=True)
-            else:
-                np.multiply(nkv, dt, out=tmp)
-                nku += tmp
-            np.multiply(nkv, beta_r, out=f)  # the Rayleigh stiffness part -beta K v, here rather than below
-            f += nku
-        else:
-            kern.force(u, f, negate=True)  # f = -f_int, bit for bit
-        if kern.g.size:
-            diss = kern.relax(dt)
-            if sliding:
-                e["viscous"] += diss
-        lf = 1.0 if sliding else _ramp(step * dt, t_ramp)
-        f[2, -1] += lf * f_top
-        t_b = perf()
-        ph[0] += t_b - t_a
-        # ---- damping (mass proportional, velocity relative to the holder)
-        c = (alpha_r if rayleigh else config.slide_damping_per_s) if sliding else config.preload_damping_per_s
-        vx_frame = v_slide if sliding else 0.0
-        # sliding: dashpots to the holder (moving with (v_slide, 0, vz_holder)), so the rigid vertical motion that
-        # follows the texture is not resisted; preload: to the ground (dynamic relaxation of the whole slider)
-        vz_frame = vz_holder if sliding else 0.0
-        if c > 0:
-            if c != c_cached:
-                c_cached = c
-                neg_cm = -c * mass
-            np.multiply(v, neg_cm[None], out=fdamp)  # -c m (v - v_frame), frame terms on two components
-            if vx_frame:
-                fdamp[0] -= vx_frame * neg_cm
-            if vz_frame:
-                fdamp[2] -= vz_frame * neg_cm
-            f += fdamp
-        if sliding and kern_beta is not None:  # -beta K v: rigid (frame) motion is in K's null space
-            kern_beta.force(v, fbeta, negate=True)
-            f += fbeta
-        t_a = perf()
-        ph[1] += t_a - t_b
-        # ---- contact normal (penalty, conservative), evaluated on the candidate nodes only: those below the
-        # upper bound of the surface in their cell (a node above it cannot penetrate; exact, no tolerance)
-        xb = Xb[0] + ub[0]
-        yb = Xb[1] + ub[1]
-        zb = Xb[2] + ub[2]
-        cand = all_nodes if bound is None else bound.candidates(xb, yb, zb)
-        if cand.size:
-            zs, gx, gy = pavement.evaluate(xb[cand], yb[cand])
-            d = zs - zb[cand]
-            act = d > 0.0
-            ia = cand[act]  # nodes in contact
-            d = d[act]
-            gx = gx[act]
-            gy = gy[act]
-        else:
-            ia = cand
-            d = gx = gy = np.zeros(0)
-        kd = k_pen_f[ia] * d
-        if normal_gap:  # k d_n along the normal: vertical component k d / (1 + |grad z|^2)
-            kd /= 1.0 + gx * gx + gy * gy
-        fcn = np.empty((3, ia.size))
-        np.multiply(kd, gx, out=fcn[0])
-        np.negative(fcn[0], out=fcn[0])
-        np.multiply(kd, gy, out=fcn[1])
-        np.negative(fcn[1], out=fcn[1])
-        fcn[2] = kd
-        fb[:, ia] += fcn
-        pen_energy = 0.5 * float(np.dot(kd, d))
-        t_b = perf()
-        ph[2] += t_b - t_a
-        # ---- friction: stick limit or penalty with return mapping (nodes in contact; the others carry none)
-        n_len = np.sqrt(1.0 + gx * gx + gy * gy)
-        N = kd * n_len
-        nxh, nyh, nzh = -gx / n_len, -gy / n_len, 1.0 / n_len
-        if fric_penalty:
-            # elastic predictor on the step's displacement increment dt v(n-1/2), return mapping onto mu(s) N;
-            # s = tangential speed of the node over the step (the slip rate once it slides)
-            vt = vb[:, ia]
-            vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
-            s = np.sqrt(np.maximum((vt * vt).sum(axis=0) - vn * vn, 0.0))
-            mu_n = law.mu(s) * N
-            # (k_t dt) v = k_t du: the step's displacement increment without forming it
-            fric, stuck = penalty_friction(ft_state[:, ia], vt, k_fric_dt_f[ia], mu_n, (nxh, nyh, nzh))
-            n_stick = int(np.count_nonzero(stuck))  # nodes in the elastic (stick) regime (diagnostic)
-            ft_state.fill(0.0)  # nodes out of contact lose their tangential force
-            ft_state[:, ia] = fric
-        else:
-            vt = vb[:, ia] + fb[:, ia] * inv_mb_dt[ia]  # trial velocity without friction
-            vn = vt[0] * nxh + vt[1] * nyh + vt[2] * nzh
-            vt[0] -= vn * nxh
-            vt[1] -= vn * nyh
-            vt[2] -= vn * nzh
-            s = np.sqrt((vt * vt).sum(axis=0))
-            mu_n = law.mu(s) * N
-            stick_lim = mb_over_dt[ia] * s
-            n_stick = int(np.count_nonzero(stick_lim < mu_n))  # nodes held by the stick limit (diagnostic)
-            fmag = np.minimum(mu_n, stick_lim)
-            scale = np.where(s > 0.0, -fmag / np.where(s > 0.0, s, 1.0), 0.0)
-            fric = vt * scale
-        fb[:, ia] += fric
-        t_a = perf()
-        ph[3] += t_a - t_b
-        # ---- rigid holder: top x/y velocity prescribed (reaction = -(net force) there), one common z velocity
-        react_x = -float(f[0, -1].sum())
-        fz_holder = float(f[2, -1].sum())
-        vz_old = vz_holder
-        fz_hd = -c_holder * vz_holder if sliding else 0.0  # holder suspension dashpot (to the ground)
-        vz_holder = vz_holder + dt * (fz_holder + fz_hd) / m_holder
-        # ---- update
-        if sliding:
-            vb_old = vb[:, ia]
-            if c > 0:
-                fd_dot_v_old = float(np.vdot(fdamp, v))  # avoids copying v: f_d.(v_old + v_new) in two dots
-            if fbeta is not None:
-                fb_dot_v_old = float(np.vdot(fbeta, v))
-            elif nkv is not None:
-                fb_dot_v_old = beta_r * float(np.vdot(nkv, v))
-        np.multiply(f, dt_minv, out=tmp)
-        v += tmp
-        v[0, -1] = vx_frame
-        v[1, -1] = 0.0
-        v[2, -1] = vz_holder
-        if sliding:
-            h = 0.5 * dt
-            e["external"] += h * (-config.load_n * (vz_old + vz_holder) + react_x * 2.0 * vx_frame)
-            e["damping"] -= h * fz_hd * (vz_old + vz_holder)
-            e["friction"] -= h * float(np.vdot(fric, vb_old + vb[:, ia]))
-            if c > 0:
-                # dashpots between each node and the frame (vx_frame, 0, vz_frame): they dissipate
-                # c m |w|^2 (w = velocity relative to the frame, >= 0), the holder feeds them f_d . v_frame
-                fd_frame = 2.0 * (vx_frame * float(fdamp[0].sum()) + vz_frame * float(fdamp[2].sum()))
-                e["damping"] -= h * (fd_dot_v_old + float(np.vdot(fdamp, v)) - fd_frame)
-                e["external"] += h * fd_frame
-            if fbeta is not None:
-                e["damping"] -= h * (fb_dot_v_old + float(np.vdot(fbeta, v)))
-            elif nkv is not None:  # the Rayleigh stiffness part -beta K v(n-1/2) is beta * nkv
-                e["damping"] -= h * (fb_dot_v_old + beta_r * float(np.vdot(nkv, v)))
-        np.multiply(v, dt, out=tmp)
-        u += tmp
-        t_b = perf()
-        ph[4] += t_b - t_a
-        # ---- pavement force on the slider (at step n)
-        fz_sum = float(fcn[2].sum() + fric[2].sum())
-        area_now = float(area_bf[ia].sum())
-        if not sliding and step >= n_ramp and (step - n_ramp) % n_check == 0:
-            # preload converged: contact force within tolerance of the load at two checks in a row
-            ok = abs(fz_sum - config.load_n) <= config.preload_tolerance * config.load_n
-            if ok and fz_prev_check is not None and step + 1 < n_pre:
-                n_pre = step + 1
-                n_total = n_pre + n_slide
-            fz_prev_check = fz_sum if ok else None
-        if sliding:
-            if d.size and d.max() > max_pen:
-                max_pen = float(d.max())
-            i = step - n_pre
-            if i % every == 0:
-                rec_t[rec] = i * dt
-                rec_x[rec] = v_slide * i * dt
-                rec_ft[rec] = -float(fcn[0].sum() + fric[0].sum())
-                rec_fn[rec] = fz_sum
-                rec_a[rec] = area_now
-                rec_ff[rec] = -float(fric[0].sum())
-                rec_nc[rec] = ia.size
-                rec_ns[rec] = n_stick
-                n_sum = float(N.sum())
-                rec_sl[rec] = float(np.dot(N, s)) / n_sum if n_sum > 0.0 else np.nan
-                rec += 1
-            if vtu is not None and i in vtu_steps:
-                p = np.zeros(mass.shape)
-                p[0].reshape(-1)[ia] = N / area_bf[ia]
-                vtu.write(i * dt, mesh.coordinates, to_mesh_layout(u), to_mesh_layout(p))
-        now = perf()
-        ph[5] += now - t_b
-        if now - last_log >= config.progress_every_s:
-            last_log = now
-            el = now - t_wall0
-            eta = el / (step + 1) * (n_total - step - 1)
-            log.info(
-                "step %d/%d (%.0f %%), %.1f s elapsed, %.1f s left",
-                step + 1,
-                n_total,
-                100.0 * (step + 1) / n_total,
-                el,
-                eta,
-            )
-            if progress is not None:
-                progress(step + 1, n_total, el, eta)
 
-    # ---- energies of the sliding phase
-    kern.force(u, fint)
-    if fric_penalty:
-        fric_energy = _spring_energy(ft_state, k_fric_f)
-    kinetic = 0.5 * float(np.vdot(mass, (v * v).sum(axis=0)))
-    # the tangential penalty springs' stored energy is contact energy; the friction entry is what they dissipate
-    d_fric_elastic = fric_energy - state0["friction_elastic"]
-    energies = dict(
-        external=e["external"],
-        kinetic=kinetic - state0["kinetic"],
-        strain=kern.strain_energy() - state0["strain"],
-        contact=pen_energy - state0["contact"] + d_fric_elastic,
-        friction=e["friction"] - d_fric_elastic,
-        hourglass=0.0,
-        damping=e["damping"],
-        viscous=e["viscous"],
-    )
-    energies["residual"] = energies["external"] - sum(
-        energies[k] for k in ("kinetic", "strain", "contact", "friction", "hourglass", "damping", "viscous")
-    )
-    trace = pd.DataFrame(
-        {
-            "time_s": rec_t[:rec],
-            "position_mm": rec_x[:rec] * 1e3,
-            "tangential_n": rec_ft[:rec],
-            "normal_n": rec_fn[:rec],
-            "contact_area_mm2": rec_a[:rec] * 1e6,
-            "friction_x_n": rec_ff[:rec],
-            "contact_nodes": rec_nc[:rec],
-            "stick_nodes": rec_ns[:rec],
-            "slip_speed_ms": rec_sl[:rec],
-        }
-    )
-    w0 = config.window_start_mm
-    w1 = slide * 1e3 if config.window_end_mm is None else min(config.window_end_mm, slide * 1e3)
-    win = (trace["position_mm"] >= w0) & (trace["position_mm"] <= w1)
-    if not win.any():
-        raise ConfigError(
-            f"simulate: the steady window [{w0}, {w1}] mm holds no trace rows (slide {slide * 1e3:.2f} mm)"
+# ---- per-member output: preload, energies, trace, result ------------------------------------------------------------
+
+
+class _Output:
+    """What each member (by id) reports: preload, energies at the start and the end of its slide, trace rows."""
+
+    FLOAT_ROWS = ("x", "ft", "fn", "a", "ff", "sl")
+
+    def __init__(self, m: _Model, speeds_kmh, vtu_dirs):
+        n = len(speeds_kmh)
+        self.m = m
+        self.v_slide = np.array([float(kmh_to_ms(s)) for s in speeds_kmh])  # m/s
+        self.n_slide = np.array([max(1, int(math.ceil(m.slide_m / (v * m.dt)))) for v in self.v_slide])
+        self.n_pre = np.full(n, m.n_pre_max)  # lowered when a member's preload converges
+        self.every = int(m.config.trace_every)
+        self.n_rec = (self.n_slide + self.every - 1) // self.every
+        rows = int(self.n_rec.max())
+        self.rec_t = np.empty(rows)
+        self.rec = {k: np.empty((n, rows)) for k in self.FLOAT_ROWS}
+        self.rec_nc = np.empty((n, rows), dtype=np.int64)
+        self.rec_ns = np.empty((n, rows), dtype=np.int64)
+        self.preload_force, self.preload_area = np.zeros(n), np.zeros(n)
+        self.state0 = {k: np.zeros(n) for k in ("kinetic", "strain", "contact", "friction_elastic")}
+        self.final = {k: np.zeros(n) for k in (*self.state0, "max_pen", *_Batch.ENERGY)}
+        self.vtu = [None if d is None else VtuSeriesWriter(d, m.mesh) for d in vtu_dirs]
+        self.any_vtu = any(w is not None for w in self.vtu)
+        frames = int(m.config.vtu_frames)
+        self.vtu_steps = [
+            set() if w is None else set(np.unique(np.linspace(0, ns - 1, frames).round().astype(int)).tolist())
+            for w, ns in zip(self.vtu, self.n_slide)
+        ]
+
+    def start_slide(self, b: _Batch) -> None:
+        """Start of sliding: every node gets the test speed; the energies the slide's changes are measured from."""
+        ids = b.ids
+        self.preload_force[ids], self.preload_area[ids] = b.fz_sum, b.area_now
+        b.v[0] += b.v_slide[:, None, None]
+        b.kern.force(b.u, b.fint)
+        self.state0["kinetic"][ids] = b.kinetic()
+        self.state0["strain"][ids] = b.kern.member_strain_energy()
+        self.state0["contact"][ids] = b.pen_energy
+        self.state0["friction_elastic"][ids] = b.friction_elastic()
+
+    def record(self, b: _Batch, st: _StepOut, i: int) -> None:
+        """Trace row of slide step ``i`` (pavement forces on the slider at step n), maximum penetration, VTU."""
+        c, seg, dt = st.contact, st.seg, self.m.dt
+        if b.one:
+            self._record_one(b, st, i)
+        else:
+            if c.d_m.size:
+                b.max_pen = np.maximum(b.max_pen, seg.maximum(c.d_m, 0.0))
+            if i % self.every == 0:
+                self._record_rows(b, st, i)
+        if not self.any_vtu:
+            return
+        for q, j in enumerate(b.ids):
+            if self.vtu[j] is not None and i in self.vtu_steps[j]:
+                i0, i1 = seg.edges[q], seg.edges[q + 1]
+                p = np.zeros(self.m.mass.shape)
+                p[0].reshape(-1)[c.ia[i0:i1] - q * self.m.n_face] = c.normal_n[i0:i1] / b.area_bf[c.ia[i0:i1]]
+                self.vtu[j].write(i * dt, self.m.mesh.coordinates, to_mesh_layout(b.u[:, :, q]), to_mesh_layout(p))
+
+    def _record_rows(self, b: _Batch, st: _StepOut, i: int) -> None:
+        """The trace row of slide step ``i`` of each member of a batch."""
+        c, seg, sums, dt = st.contact, st.seg, st.sums, self.m.dt
+        r, ids, rec = i // self.every, b.rows, self.rec
+        self.rec_t[r] = i * dt
+        rec["x"][ids, r] = b.v_slide * i * dt
+        rec["ft"][ids, r] = -(sums[0] + sums[2])
+        rec["fn"][ids, r] = b.fz_sum
+        rec["a"][ids, r] = b.area_now
+        rec["ff"][ids, r] = -sums[2]
+        self.rec_nc[ids, r] = seg.counts()
+        self.rec_ns[ids, r] = seg.count(st.stick)
+        n_sum = sums[5]
+        has_n = n_sum > 0.0
+        rec["sl"][ids, r] = np.where(has_n, seg.dot(c.normal_n, st.s) / np.where(has_n, n_sum, 1.0), np.nan)
+
+    def _record_one(self, b: _Batch, st: _StepOut, i: int) -> None:
+        """:meth:`record` of a batch of one: the single run's scalar operations."""
+        c, fric = st.contact, st.fric
+        d = c.d_m
+        if d.size:
+            d_max = float(d.max())
+            if d_max > b.max_pen[0]:
+                b.max_pen[0] = d_max
+        if i % self.every == 0:
+            r, j, rec, dt = i // self.every, int(b.ids[0]), self.rec, self.m.dt
+            self.rec_t[r] = i * dt
+            rec["x"][j, r] = b.vx1 * i * dt
+            fx = _add(fric[0], None)
+            rec["ft"][j, r] = -float(_add(c.force_n[0], None) + fx)
+            rec["fn"][j, r] = st.fz
+            rec["a"][j, r] = st.area
+            rec["ff"][j, r] = -float(fx)
+            self.rec_nc[j, r] = c.ia.size
+            self.rec_ns[j, r] = np.count_nonzero(st.stick)
+            n_sum = float(_add(c.normal_n, None))
+            rec["sl"][j, r] = float(np.dot(c.normal_n, st.s)) / n_sum if n_sum > 0.0 else np.nan
+
+    def finish(self, b: _Batch) -> None:
+        """Energies of the members of ``b`` at the end of their slide."""
+        ids, f = b.ids, self.final
+        b.kern.force(b.u, b.fint)
+        f["kinetic"][ids] = b.kinetic()
+        f["strain"][ids] = b.kern.member_strain_energy()
+        f["contact"][ids] = b.pen_energy
+        f["friction_elastic"][ids] = b.friction_elastic()
+        f["max_pen"][ids] = b.max_pen
+        for k in _Batch.ENERGY:
+            f[k][ids] = b.e[k]
+
+    def energies(self, j: int) -> dict:
+        """Energy changes (J) of member ``j`` over its slide; the tangential penalty springs' stored energy is
+        contact energy, the friction entry is what they dissipate."""
+        f, s0 = self.final, self.state0
+        d_fric_elastic = float(f["friction_elastic"][j]) - float(s0["friction_elastic"][j])
+        energies = dict(
+            external=float(f["external"][j]),
+            kinetic=float(f["kinetic"][j]) - float(s0["kinetic"][j]),
+            strain=float(f["strain"][j]) - float(s0["strain"][j]),
+            contact=float(f["contact"][j]) - float(s0["contact"][j]) + d_fric_elastic,
+            friction=float(f["friction"][j]) - d_fric_elastic,
+            hourglass=0.0,
+            damping=float(f["damping"][j]),
+            viscous=float(f["viscous"][j]),
         )
-    ft = float(trace.loc[win, "tangential_n"].mean())
-    fn = float(trace.loc[win, "normal_n"].mean())
-    if trace_path is not None:
-        write_trace_parquet(trace, trace_path)
-    wall = time.perf_counter() - t_wall0
-    phase_s = dict(zip(PHASES, ph))
-    phase_s["setup_and_rest"] = wall - sum(ph)
-    log.info("simulate: SN %.4f (Ft %.4f N / Fn %.4f N), %d steps in %.1f s", ft / fn, ft, fn, n_total, wall)
-    return SimulationResult(
-        sn=ft / fn,
-        tangential_n=ft,
-        normal_n=fn,
-        n_steps=n_total,
-        dt_s=dt,
-        wall_s=wall,
-        energies=energies,
-        trace=trace,
-        speed_kmh=float(speed_kmh),
-        slide_length_mm=slide * 1e3,
-        slide_clamped=clamped,
-        window_mm=(float(w0), float(w1)),
-        preload_steps=n_pre,
-        preload_contact_force_n=preload_force,
-        preload_contact_area_mm2=preload_area * 1e6,
-        max_penetration_um=max_pen * 1e6,
-        n_elements=mesh.n_elements,
-        omega_max_rad_s=omega,
-        mean_contact_area_mm2=float(trace.loc[win, "contact_area_mm2"].mean()),
-        mean_slip_speed_ms=float(trace.loc[win, "slip_speed_ms"].mean()),
-        meta=dict(
-            config=config.as_dict(),
-            y_offset_mm=float(y_offset_mm),
-            omega_elastic_rad_s=omega_el,
-            rayleigh_alpha_per_s=alpha_r,
-            rayleigh_beta_s=beta_r,
-            slope_bound=float(slope_bound),
-            element_size_m=(mesh.hx, mesh.hy, mesh.hz),
-            phase_s=phase_s,
-        ),
+        energies["residual"] = energies["external"] - sum(
+            energies[k] for k in ("kinetic", "strain", "contact", "friction", "hourglass", "damping", "viscous")
+        )
+        return energies
+
+    def trace(self, j: int) -> pd.DataFrame:
+        n, rec = int(self.n_rec[j]), self.rec
+        return pd.DataFrame(
+            {
+                "time_s": self.rec_t[:n].copy(),
+                "position_mm": rec["x"][j, :n] * 1e3,
+                "tangential_n": rec["ft"][j, :n].copy(),
+                "normal_n": rec["fn"][j, :n].copy(),
+                "contact_area_mm2": rec["a"][j, :n] * 1e6,
+                "friction_x_n": rec["ff"][j, :n].copy(),
+                "contact_nodes": self.rec_nc[j, :n].copy(),
+                "stick_nodes": self.rec_ns[j, :n].copy(),
+                "slip_speed_ms": rec["sl"][j, :n].copy(),
+            }
+        )
+
+    def result(self, j: int, speed_kmh: float, y_offset_mm: float, trace_path, wall_s: float, phase_s: dict):
+        """The :class:`SimulationResult` of member ``j``: SN = window mean tangential / window mean normal force."""
+        m, cfg = self.m, self.m.config
+        trace = self.trace(j)
+        slide = m.slide_m
+        w0 = cfg.window_start_mm
+        w1 = slide * 1e3 if cfg.window_end_mm is None else min(cfg.window_end_mm, slide * 1e3)
+        win = (trace["position_mm"] >= w0) & (trace["position_mm"] <= w1)
+        if not win.any():
+            raise ConfigError(
+                f"simulate: the steady window [{w0}, {w1}] mm holds no trace rows (slide {slide * 1e3:.2f} mm)"
+            )
+        ft = float(trace.loc[win, "tangential_n"].mean())
+        fn = float(trace.loc[win, "normal_n"].mean())
+        if trace_path is not None:
+            write_trace_parquet(trace, trace_path)
+        n_total = int(self.n_pre[j] + self.n_slide[j])
+        log.info("simulate: SN %.4f (Ft %.4f N / Fn %.4f N), %d steps", ft / fn, ft, fn, n_total)
+        return SimulationResult(
+            sn=ft / fn,
+            tangential_n=ft,
+            normal_n=fn,
+            n_steps=n_total,
+            dt_s=m.dt,
+            wall_s=wall_s,
+            energies=self.energies(j),
+            trace=trace,
+            speed_kmh=float(speed_kmh),
+            slide_length_mm=slide * 1e3,
+            slide_clamped=m.clamped,
+            window_mm=(float(w0), float(w1)),
+            preload_steps=int(self.n_pre[j]),
+            preload_contact_force_n=float(self.preload_force[j]),
+            preload_contact_area_mm2=float(self.preload_area[j]) * 1e6,
+            max_penetration_um=float(self.final["max_pen"][j]) * 1e6,
+            n_elements=m.mesh.n_elements,
+            omega_max_rad_s=m.omega,
+            mean_contact_area_mm2=float(trace.loc[win, "contact_area_mm2"].mean()),
+            mean_slip_speed_ms=float(trace.loc[win, "slip_speed_ms"].mean()),
+            meta=dict(
+                config=cfg.as_dict(),
+                y_offset_mm=float(y_offset_mm),
+                omega_elastic_rad_s=m.omega_el,
+                rayleigh_alpha_per_s=m.alpha_r,
+                rayleigh_beta_s=m.beta_r,
+                slope_bound=m.slope_bound,
+                element_size_m=(m.mesh.hx, m.mesh.hy, m.mesh.hz),
+                phase_s=phase_s,
+                batch_size=len(self.n_slide),
+            ),
+        )
+
+
+def _run(pavement, speeds_kmh, laws, config, y_offset_mm, progress, trace_paths, vtu_dirs, slope_bound):
+    """Preload and slide the members (one speed and law each) together; one result per member."""
+    t_wall0 = time.perf_counter()
+    for s in speeds_kmh:
+        if not (np.isfinite(s) and s > 0):
+            raise ConfigError(f"simulate: 'speed_kmh' expected > 0 km/h, got {s!r}")
+    m = _build_model(pavement, config, y_offset_mm, slope_bound)
+    out = _Output(m, speeds_kmh, vtu_dirs)
+    log.info(
+        "simulate: %d elements, dt %.3g us, <= %d preload + %s slide steps at %s km/h over %.1f mm",
+        m.mesh.n_elements,
+        m.dt * 1e6,
+        m.n_pre_max,
+        out.n_slide.tolist(),
+        [float(s) for s in speeds_kmh],
+        m.slide_m * 1e3,
     )
+    clock = _Clock(config, progress)
+    clock.t0 = t_wall0
+    b = _Batch(m, np.arange(len(speeds_kmh)), out.v_slide, laws)
+    b = _preload(m, b, out, clock)
+    _slide(m, b, out, clock)
+    wall = time.perf_counter() - t_wall0
+    phase_s = dict(zip(PHASES, clock.ph))
+    phase_s["setup_and_rest"] = wall - sum(clock.ph)
+    steps = out.n_pre + out.n_slide
+    return [
+        out.result(j, s, y_offset_mm, trace_paths[j], wall * float(steps[j]) / float(steps.sum()), phase_s)
+        for j, s in enumerate(speeds_kmh)
+    ]

@@ -67,6 +67,12 @@ class StructuredKernel:
     k_dev_unit: 24 x 24 unit-shear-modulus deviatoric element matrix (m), needed with Prony terms.
     branch_g_pa: shear moduli G_i (Pa) of the Maxwell branches.
     branch_tau_s: relaxation times tau_i (s).
+    batch: number of sliders (members) stored side by side. **Batched layout** ``(3, nz+1, B, ny+1, nx+1)``:
+        the member axis sits between the layers and the rows, so each layer is ``B`` copies of the
+        ``(ny+1, nx+1)`` face and the bottom and top faces of all members stay contiguous. It is the padded flat
+        layout above with the layer stride ``B (ny+1)(nx+1)``: the same 8 slabs and one dgemm for all members,
+        whose columns do not mix (each member's forces are those of a single-member kernel, bit for bit, with
+        OpenBLAS: tested). ``batch = 1`` is the single-slider layout.
     """
 
     def __init__(
@@ -77,19 +83,22 @@ class StructuredKernel:
         k_dev_unit: np.ndarray | None = None,
         branch_g_pa=(),
         branch_tau_s=(),
+        batch: int = 1,
     ):
         self.mesh = mesh
+        self.batch = b = int(batch)
         self.k = np.ascontiguousarray(k_elastic, dtype=float)
         nx, ny, nz = mesh.nx, mesh.ny, mesh.nz
         self.slices = corner_slices(mesh)
-        sy, sz = nx + 1, (nx + 1) * (ny + 1)
+        sy, sf = nx + 1, (nx + 1) * (ny + 1)
+        sz = b * sf  # layer stride: B faces
         self.offsets = [dk * sz + dj * sy + di for di, dj, dk in HEX_CORNERS]
         self.n_nodes = (nz + 1) * sz
         self.n_cols = nz * sz  # padded element columns (real + dummy)
         # slab length: up to the last real element (the slab of the farthest corner then ends at the last node)
-        self.n_slab = (nz - 1) * sz + (ny - 1) * sy + nx
+        self.n_slab = (nz - 1) * sz + (b - 1) * sf + (ny - 1) * sy + nx
         self.ue = np.zeros((24, self.n_cols))
-        self._ue4 = self.ue.reshape(24, nz, ny + 1, nx + 1)
+        self._ue4 = self.ue.reshape(24, nz * b, ny + 1, nx + 1)
         self.fe = np.empty((24, self.n_cols))
         self.g = np.asarray(branch_g_pa, dtype=float)
         self.tau = np.asarray(branch_tau_s, dtype=float)
@@ -98,7 +107,7 @@ class StructuredKernel:
         self._tmp = np.empty((24, self.n_cols)) if len(self.g) else None
         self._ftmp = np.empty((24, self.n_cols)) if len(self.g) else None
         self._k_neg = None
-        self.branch_energy = np.zeros(len(self.g))  # J, stored in each Maxwell branch at the last call
+        self.branch_energy = np.zeros((len(self.g), b))  # J per term and member, at the last call
         if len(self.g) and self.k_dev is None:
             raise ValueError("Prony terms need k_dev_unit")
 
@@ -126,9 +135,52 @@ class StructuredKernel:
         return out
 
     def real_columns(self, a: np.ndarray) -> np.ndarray:
-        """The real elements' columns of a padded ``(24, n_cols)`` array as ``(24, nz, ny, nx)``."""
+        """The real elements' columns of a padded ``(24, n_cols)`` array as ``(24, nz, ny, nx)`` (``batch`` 1) or
+        ``(24, nz, B, ny, nx)``."""
         nx, ny, nz = self.mesh.nx, self.mesh.ny, self.mesh.nz
-        return a.reshape(24, nz, ny + 1, nx + 1)[:, :, :ny, :nx]
+        if self.batch == 1:
+            return a.reshape(24, nz, ny + 1, nx + 1)[:, :, :ny, :nx]
+        return a.reshape(24, nz, self.batch, ny + 1, nx + 1)[:, :, :, :ny, :nx]
+
+    def member_dot(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Per-member ``a . b`` (``batch``,) of two padded element arrays ``(24, n_cols)``; ``np.vdot`` for one."""
+        if self.batch == 1:
+            return np.array([np.vdot(a, b)])
+        shape = (24 * self.mesh.nz, self.batch, -1)
+        return np.einsum("kbs,kbs->b", a.reshape(shape), b.reshape(shape))
+
+    def take(self, members) -> StructuredKernel:
+        """A kernel for the members ``members`` (indices along the batch axis), with their Prony history."""
+        members = np.asarray(members, dtype=np.intp)
+        new = StructuredKernel(
+            self.mesh,
+            self.k,
+            k_dev_unit=self.k_dev,
+            branch_g_pa=self.g,
+            branch_tau_s=self.tau,
+            batch=members.size,
+        )
+        shape = (24, self.mesh.nz, self.batch, -1)
+        for a_new, a in zip(new.a, self.a):
+            a_new[...] = a.reshape(shape)[:, :, members].reshape(a_new.shape)
+        return new
+
+    @staticmethod
+    def concat(kernels: list[StructuredKernel]) -> StructuredKernel:
+        """One kernel for the members of ``kernels`` side by side (in that order), with their Prony history."""
+        k0 = kernels[0]
+        new = StructuredKernel(
+            k0.mesh,
+            k0.k,
+            k_dev_unit=k0.k_dev,
+            branch_g_pa=k0.g,
+            branch_tau_s=k0.tau,
+            batch=sum(k.batch for k in kernels),
+        )
+        for i, a_new in enumerate(new.a):
+            parts = [k.a[i].reshape(24, k.mesh.nz, k.batch, -1) for k in kernels]
+            a_new[...] = np.concatenate(parts, axis=2).reshape(a_new.shape)
+        return new
 
     def force(self, u: np.ndarray, out: np.ndarray, *, negate: bool = False) -> np.ndarray:
         """Internal nodal forces (N) of nodal displacements ``u`` (m), internal layout ``(3, nz+1, ny+1, nx+1)``.
@@ -138,7 +190,7 @@ class StructuredKernel:
         array pass per step.
         """
         if not (out.flags.c_contiguous and u.flags.c_contiguous):
-            raise ValueError("StructuredKernel.force: u and out must be C-contiguous (3, nz+1, ny+1, nx+1) arrays")
+            raise ValueError("StructuredKernel.force: u and out must be C-contiguous (3, nz+1, [B,] ny+1, nx+1) arrays")
         ue = self.gather(u)
         if negate:
             if self._k_neg is None:
@@ -150,28 +202,33 @@ class StructuredKernel:
             for i, gi in enumerate(self.g):
                 np.subtract(ue, self.a[i], out=self._tmp)
                 np.matmul(self.k_dev, self._tmp, out=self._ftmp)
-                self.branch_energy[i] = 0.5 * gi * float(np.vdot(self._tmp, self._ftmp))
+                self.branch_energy[i] = 0.5 * gi * self.member_dot(self._tmp, self._ftmp)
                 self._ftmp *= -gi if negate else gi
                 self.fe += self._ftmp
         return self.scatter(self.fe, out)
 
     def strain_energy(self) -> float:
-        """Stored energy (J) at the displacements of the last :meth:`force` call: ``U.K_inf.U/2 + sum_i E_i``."""
+        """Stored energy (J) at the displacements of the last :meth:`force` call: ``U.K_inf.U/2 + sum_i E_i``
+        (the sum over the members of a batch; :meth:`member_strain_energy` per member)."""
+        return float(self.member_strain_energy().sum())
+
+    def member_strain_energy(self) -> np.ndarray:
+        """Stored energy (J) of each member (``batch``,) at the displacements of the last :meth:`force` call."""
         ue = self.ue
         fe = np.matmul(self.k, ue)
-        return 0.5 * float(np.vdot(ue, fe)) + float(self.branch_energy.sum())
+        return 0.5 * self.member_dot(ue, fe) + self.branch_energy.sum(axis=0)
 
-    def relax(self, dt_s: float) -> float:
+    def relax(self, dt_s: float) -> np.ndarray:
         """Advance the Prony internal variables over ``dt_s`` (exact for constant element displacements).
 
         Must be called after :meth:`force` (it uses the element displacements gathered there). Returns the
-        energy (J) dissipated in the branches over the step, ``sum_i beta_i * 2 * E_i`` with
+        energy (J) dissipated in the branches over the step per member (``batch``,), ``sum_i beta_i * 2 * E_i`` with
         ``beta_i = 1 - exp(-dt/tau_i)`` and ``E_i`` the branch energy: the exact dissipation of the update.
         """
         if not len(self.g):
-            return 0.0
+            return np.zeros(self.batch)
         ue = self.ue
-        diss = 0.0
+        diss = np.zeros(self.batch)
         for i, tau in enumerate(self.tau):
             beta = -np.expm1(-dt_s / tau)
             # A_i += beta (U - A_i); the branch energy drops from E to (1-beta)^2 E: dissipated (1-(1-beta)^2) E

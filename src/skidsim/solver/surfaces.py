@@ -183,8 +183,10 @@ class SurfaceBound:
         """Padded cell index of points (m), computed exactly as ``Heightfield.evaluate`` does."""
         sx = (x_m - self._lo[0]) * self._inv[0]
         sy = (y_m - self._lo[1]) * self._inv[1]
-        np.clip(sx, 0.0, self._hi[0], out=sx)
-        np.clip(sy, 0.0, self._hi[1], out=sy)
+        # np.clip(s, 0, hi) as its two ufuncs (the same values up to the sign of a zero; the cells are equal),
+        # without np.clip's Python wrappers
+        np.minimum(np.maximum(sx, 0.0, out=sx), self._hi[0], out=sx)
+        np.minimum(np.maximum(sy, 0.0, out=sy), self._hi[1], out=sy)
         cell = sy.astype(np.intp)
         cell *= self._nxc
         cell += sx.astype(np.intp)

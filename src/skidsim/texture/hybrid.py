@@ -14,34 +14,50 @@ import numpy as np
 
 def sdq(z: np.ndarray, dx: float, dy: float) -> float:
     """Root-mean-square gradient (dimensionless) of a complete height array (mm) on spacings dx, dy (mm)."""
-    gx = np.diff(z, axis=1)
-    gy = np.diff(z, axis=0)
+    return hybrid_parameters(z, dx, dy, area=False)["Sdq"]
+
+
+def _sdq_of(gx: np.ndarray, gy: np.ndarray, dx: float, dy: float) -> float:
     mx = float(np.einsum("ij,ij->", gx, gx)) / gx.size / dx**2
     my = float(np.einsum("ij,ij->", gy, gy)) / gy.size / dy**2
     return float(np.sqrt(mx + my))
 
 
-def developed_area(z: np.ndarray, dx: float, dy: float) -> float:
-    """Developed (true) area in mm^2 by ISO 25178-2 eq. D.15 (both diagonal triangulations averaged)."""
-    gx = np.diff(z, axis=1)  # (R, C-1)
+def _developed_area_of(gx: np.ndarray, gy: np.ndarray, dx: float, dy: float) -> float:
+    """Eq. D.15 from the forward differences ``gx = diff(z, axis=1)``, ``gy = diff(z, axis=0)`` (overwritten)."""
     gx *= dy
     np.square(gx, out=gx)  # (dy dz_x)^2
-    gy = np.diff(z, axis=0)  # (R-1, C)
     gy *= dx
     np.square(gy, out=gy)  # (dx dz_y)^2
     cz = (dx * dy) ** 2
     total = 0.0
+    t = np.empty((gx.shape[0] - 1, gy.shape[1] - 1))
     for xs in (gx[:-1, :], gx[1:, :]):  # bottom, top x edges of each cell
         for ys in (gy[:, :-1], gy[:, 1:]):  # left, right y edges
-            t = xs + ys
+            np.add(xs, ys, out=t)
             t += cz
             np.sqrt(t, out=t)
             total += float(t.sum())
     return 0.25 * total
 
 
+def developed_area(z: np.ndarray, dx: float, dy: float) -> float:
+    """Developed (true) area in mm^2 by ISO 25178-2 eq. D.15 (both diagonal triangulations averaged)."""
+    return _developed_area_of(np.diff(z, axis=1), np.diff(z, axis=0), dx, dy)
+
+
 def sdr(z: np.ndarray, dx: float, dy: float) -> float:
     """Developed interfacial area ratio in % (ISO 25178-2 eq. D.15; see module docstring)."""
-    rows, cols = z.shape
-    a0 = (cols - 1) * dx * (rows - 1) * dy
-    return (developed_area(z, dx, dy) / a0 - 1.0) * 100.0
+    return hybrid_parameters(z, dx, dy)["Sdr"]
+
+
+def hybrid_parameters(z: np.ndarray, dx: float, dy: float, area: bool = True) -> dict[str, float]:
+    """``{"Sdq": .., "Sdr": ..}`` (Sdr only with ``area``) from one pair of forward differences."""
+    gx = np.diff(z, axis=1)  # (R, C-1)
+    gy = np.diff(z, axis=0)  # (R-1, C)
+    out = {"Sdq": _sdq_of(gx, gy, dx, dy)}
+    if area:
+        rows, cols = z.shape
+        a0 = (cols - 1) * dx * (rows - 1) * dy
+        out["Sdr"] = (_developed_area_of(gx, gy, dx, dy) / a0 - 1.0) * 100.0
+    return out

@@ -34,6 +34,7 @@ class MaterialRatio:
         else:
             s = sorted_desc
         self.sorted = s
+        self._neg = -s  # ascending: the searchsorted key of smr and the volumes, negated once
         self.n = s.size
         # cumulative sums for exact volumes: csum[i] = sum of the i highest heights
         self._csum = np.concatenate([[0.0], np.cumsum(s)])
@@ -50,17 +51,17 @@ class MaterialRatio:
     def smr(self, c: float) -> float:
         """Material ratio (%) at height ``c`` (mm): share of points with z >= c."""
         # sorted descending: count of s >= c
-        count = np.searchsorted(-self.sorted, -c, side="right")
+        count = np.searchsorted(self._neg, -c, side="right")
         return 100.0 * count / self.n
 
     def volume_above(self, c: float) -> float:
         """``mean(max(z - c, 0))`` in mm^3/mm^2."""
-        k = np.searchsorted(-self.sorted, -c, side="left")  # number of points with z > c
+        k = np.searchsorted(self._neg, -c, side="left")  # number of points with z > c
         return float((self._csum[k] - k * c) / self.n)
 
     def volume_below(self, c: float) -> float:
         """``mean(max(c - z, 0))`` in mm^3/mm^2."""
-        k = np.searchsorted(-self.sorted, -c, side="right")  # points with z >= c
+        k = np.searchsorted(self._neg, -c, side="right")  # points with z >= c
         m = self.n - k
         return float((m * c - (self._csum[-1] - self._csum[k])) / self.n)
 

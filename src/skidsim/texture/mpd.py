@@ -11,20 +11,34 @@ distances x (mm):
    second half; distances are then counted from the new start.
 1. Dropouts (NaN) are flagged on the original samples; then filled: held at the first / last valid height at the
    ends, linear in distance inside.
-2. Resampling to ``resample_mm`` (0.5 mm) by **bin mean**: a sample at x goes to bin k = ceil(x / 0.5 mm) (x = 0
-   joins bin 1); bin k sits at x = 0.5 k mm; bin means rounded to 1e-6 mm. A profile whose mean spacing is already
-   exactly 0.5 mm is used as it is. (Point sampling instead moves MPD by about +1.6 %.)
-3. Spikes: a step ``|z[k+1] - z[k]| >= spike_alpha * s`` (s: mean resampled spacing, alpha = 3: 1.5 mm) marks both
-   samples as spikes; they are removed and refilled as in 1.
+2. Resampling by **bin mean** to the resampled spacing s: 0.5 mm for profiles sampled at 0.5 mm or finer; a
+   profile sampled more coarsely, up to the 1.0 mm ISO 13473-1:2019 allows, is evaluated at its own spacing (its
+   mean distance step, rounded to 1e-6 mm and at most 1.0 mm; captif-slp's ``target_sample_spacing_mm``); the
+   option ``resample_mm`` sets s (at most 1.0 mm, not finer than the profile's mean step). A profile whose mean
+   step exceeds 1.0 mm by more than 2 % is an error (:class:`SpacingError`). A sample at x goes to bin
+   k = ceil(x / s) (x = 0 joins bin 1); bin k sits at x = s k; bin means are rounded to 1e-6 mm. A profile whose
+   mean step is already s (to 1e-9 relative) is used as it is. (Point sampling instead of bin means moves MPD by
+   about +1.6 % at 0.5 mm.)
+3. Spikes: a step ``|z[k+1] - z[k]| >= spike_alpha * s`` (s: mean resampled spacing, alpha = 3: 1.5 mm at 0.5 mm,
+   3 mm at 1.0 mm) marks both samples as spikes; they are removed and refilled as in 1.
+3a. Evaluation lengths (``evaluation_length_m``, off by default; captif-slp's option of the same name for network
+   runs): a 2nd-order Butterworth high-pass at ``highpass_mm`` (174.2 mm, captif-slp's cut-off) applied zero-phase
+   to the whole resampled profile, and **no** per-segment slope removal in step 5; every segment belongs to the
+   evaluation length ``(floor(x0 / E) + 1) * E`` (m), x0 the first original distance in the segment, E the length.
 4. Low-pass: 2nd-order Butterworth (scipy ``butter``), cut-off wavelength ``lowpass_mm`` (2.4 mm), applied
-   zero-phase (``sosfiltfilt``) to the whole resampled profile.
+   zero-phase (``sosfiltfilt``) to the whole resampled profile; the filter is designed for the resampled spacing.
 5. Segments of ``segment_mm`` (100 mm) in absolute distance: (0, L], (L, 2L], ... (the first closed at 0;
-   negative distances belong to none). A segment holding fewer than 90 % of L / 0.5 mm resampled samples is not
-   evaluated (so a remainder of 90 mm or more counts). Per segment the least-squares line is removed; MSD = (max of
-   the first half + max of the second half) / 2 - segment mean, the halves split at n // 2.
+   negative distances belong to none). A segment holding fewer than 90 % of L / s resampled samples is not
+   evaluated (so a remainder of 90 mm or more counts). Per segment the least-squares line is removed (not with
+   evaluation lengths) and the result rounded to 1e-6 mm; MSD = (max of the first half + max of the second half)
+   / 2 - segment mean, the halves split at n // 2.
 6. A segment is invalid if more than ``max_dropout_pct`` (10 %) of its original samples were dropouts or more than
    ``max_spike_pct`` (5 %) of its resampled samples were spikes. MPD = mean MSD of the valid segments, ``sd_mm``
-   their sample SD (ddof = 1). ETD = 1.1 MPD (ISO 13473-1:2019; the 1997 edition used 0.2 + 0.8 MPD).
+   their sample SD (ddof = 1). ETD = 1.1 MPD (ISO 13473-1:2019; the 1997 edition used 0.2 + 0.8 MPD). With
+   evaluation lengths :func:`evaluation_lengths` gives the MPD of each (valid when at least half its segments are).
+
+Long runs: the segments of a profile are contiguous slices of the sorted resampled samples, so the work is linear
+in the number of samples (a 1 km profile at 1 mm, 10^6 samples: 1.3 s of CPU; docs/texture.md).
 
 A profile shorter than one evaluable segment gives no segment; the MPD is then NaN ("not available") and one
 warning is logged.
@@ -37,21 +51,43 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from skidsim.errors import ConfigError
+from skidsim.errors import ConfigError, SkidsimError
 from skidsim.surface import Surface
 
 log = logging.getLogger("skidsim")
 
 #: a segment is evaluated when it holds at least this share of its nominal number of resampled samples
 MIN_SEGMENT_COVERAGE = 0.9
+#: resampled spacing (mm) of profiles sampled at 0.5 mm or finer (ISO 13473-1:2019)
+STANDARD_SPACING_MM = 0.5
+#: coarsest sample spacing (mm) ISO 13473-1:2019 allows; coarser profiles are an error
+MAX_SPACING_MM = 1.0
+#: a profile's mean distance step may exceed the resampled spacing by this share (recorded distances jitter)
+SPACING_TOLERANCE = 0.02
+#: cut-off wavelength (mm) of the high-pass of evaluation lengths (captif-slp's HIGHPASS_FILTER_CUTOFF_WAVELENGTH_MM)
+HIGHPASS_MM = 174.2
+
+
+class SpacingError(SkidsimError):
+    """A profile sampled more coarsely than ISO 13473-1 allows, or a resampling step finer than the profile's
+    sampling. ``expected`` and ``got`` are kept for messages that name the file and the column."""
+
+    def __init__(self, expected: str, got: str):
+        self.expected, self.got = expected, got
+        super().__init__(f"distances: expected {expected}, got {got}")
 
 
 @dataclass(frozen=True)
 class MPDOptions:
-    """Options of the MPD procedure (module docstring); lengths in mm, shares in %."""
+    """Options of the MPD procedure (module docstring); lengths in mm (``evaluation_length_m`` in m), shares in %.
+
+    ``resample_mm``: the resampled spacing s; None (default): 0.5 mm, or the profile's own spacing when it is
+    coarser (at most 1.0 mm). ``evaluation_length_m``: None (default, spot measurement) or captif-slp's
+    evaluation length of network runs (step 3a).
+    """
 
     segment_mm: float = 100.0
-    resample_mm: float = 0.5
+    resample_mm: float | None = None
     lowpass_mm: float | None = 2.4
     spike_alpha: float = 3.0
     max_dropout_pct: float = 10.0
@@ -59,12 +95,24 @@ class MPDOptions:
     detect_plates: bool = False
     plate_threshold_mm: float = 30.0
     plate_buffer_mm: float = 2.0
+    evaluation_length_m: float | None = None
+    highpass_mm: float = HIGHPASS_MM
 
     def __post_init__(self) -> None:
-        for name in ("segment_mm", "resample_mm", "spike_alpha", "plate_buffer_mm"):
+        for name in ("segment_mm", "spike_alpha", "plate_buffer_mm", "highpass_mm"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ConfigError(f"MPD option {name}: expected a positive number, got {v!r}")
+        if self.resample_mm is not None and not (
+            np.isfinite(self.resample_mm) and 0 < self.resample_mm <= MAX_SPACING_MM
+        ):
+            raise ConfigError(
+                f"MPD option resample_mm: expected null or a spacing in (0, {MAX_SPACING_MM:g}] mm "
+                f"(ISO 13473-1:2019 allows at most {MAX_SPACING_MM:g} mm), got {self.resample_mm!r}"
+            )
+        v = self.evaluation_length_m
+        if v is not None and not (np.isfinite(v) and v > 0):
+            raise ConfigError(f"MPD option evaluation_length_m: expected null or a length > 0 m, got {v!r}")
         for name in ("max_dropout_pct", "max_spike_pct"):
             v = getattr(self, name)
             if not 0 <= v <= 100:
@@ -73,16 +121,46 @@ class MPDOptions:
             raise ConfigError(
                 f"MPD option plate_threshold_mm: expected a height in mm, got {self.plate_threshold_mm!r}"
             )
-        if self.segment_mm < 4 * self.resample_mm:
+        step = self.resample_mm or STANDARD_SPACING_MM
+        if self.segment_mm < 4 * step:
             raise ConfigError(
-                f"MPD option segment_mm: expected at least 4 resampled samples "
-                f"({4 * self.resample_mm} mm), got {self.segment_mm!r}"
+                f"MPD option segment_mm: expected at least 4 resampled samples ({4 * step:g} mm), "
+                f"got {self.segment_mm!r}"
             )
-        if self.lowpass_mm is not None and not self.lowpass_mm > 2 * self.resample_mm:
+        self.check_lowpass(self.resample_mm or STANDARD_SPACING_MM)
+
+    def check_lowpass(self, step_mm: float) -> None:
+        """The low-pass must lie below the Nyquist wavelength ``2 * step_mm`` of the resampled profile."""
+        if self.lowpass_mm is not None and not self.lowpass_mm > 2 * step_mm:
             raise ConfigError(
-                f"MPD option lowpass_mm: expected null or a wavelength above 2 x resample_mm "
-                f"({2 * self.resample_mm} mm), got {self.lowpass_mm!r}"
+                f"MPD option lowpass_mm: expected null or a wavelength above 2 x the resampled spacing "
+                f"({2 * step_mm:g} mm), got {self.lowpass_mm!r}"
             )
+
+
+def resampled_spacing_mm(distance_mm: np.ndarray, resample_mm: float | None = None) -> float:
+    """The resampled spacing s (mm) of a profile at ``distance_mm`` (module docstring, step 2). Raises
+    :class:`SpacingError` for a mean step above 1.0 mm (+2 %) or above an explicit ``resample_mm`` (+2 %)."""
+    x = np.asarray(distance_mm, dtype=np.float64)
+    step = float(np.diff(x).mean()) if len(x) > 1 else 0.0
+    tol = 1.0 + SPACING_TOLERANCE
+    if resample_mm is not None:
+        if step > resample_mm * tol:
+            raise SpacingError(
+                f"a resampling step (resample_mm {resample_mm:g} mm) no finer than the profile's mean distance step; "
+                f"leave it unset to evaluate at the profile's own spacing",
+                f"mean step {step:.6g} mm",
+            )
+        return float(resample_mm)
+    if step <= STANDARD_SPACING_MM * tol:
+        return STANDARD_SPACING_MM
+    if step <= MAX_SPACING_MM * tol:
+        return min(round(step, 6), MAX_SPACING_MM)
+    raise SpacingError(
+        f"a mean distance step of at most {MAX_SPACING_MM:g} mm (the coarsest ISO 13473-1:2019 allows; "
+        "distances in m or um read as mm give 1000 times too few or too many: state the unit)",
+        f"mean step {step:.6g} mm",
+    )
 
 
 @dataclass(frozen=True)
@@ -91,8 +169,10 @@ class Segments:
 
     ``profile``: index of the profile; ``start_mm``/``end_mm``: the segment (start, end] in the input's distances
     (plate trimming undone); ``msd_mm``: mean segment depth (mm); ``dropout_pct``: dropouts among its original
-    samples (%); ``spike_pct``: spikes among its resampled samples (%); ``valid``. Per profile:
-    ``trim_start_mm``/``trim_end_mm``: where plate detection cut it (NaN: not cut).
+    samples (%); ``spike_pct``: spikes among its resampled samples (%); ``valid``; ``evaluation_end_m``: end (m,
+    from the profile's start after plate trimming) of the evaluation length holding the segment, NaN without
+    evaluation lengths. Per profile: ``trim_start_mm``/``trim_end_mm``: where plate detection cut it (NaN: not cut).
+    ``spacing_mm``: the resampled spacing used.
     """
 
     profile: np.ndarray
@@ -104,22 +184,26 @@ class Segments:
     valid: np.ndarray
     trim_start_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     trim_end_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    evaluation_end_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    spacing_mm: float = STANDARD_SPACING_MM
 
     def to_frame(self):
-        """The segments as a DataFrame (columns as the attributes, mm and %)."""
+        """The segments as a DataFrame (columns as the attributes, mm and %; ``evaluation_end_m`` only when
+        evaluation lengths were used)."""
         import pandas as pd
 
-        return pd.DataFrame(
-            {
-                "profile": self.profile,
-                "start_mm": self.start_mm,
-                "end_mm": self.end_mm,
-                "msd_mm": self.msd_mm,
-                "dropout_pct": self.dropout_pct,
-                "spike_pct": self.spike_pct,
-                "valid": self.valid,
-            }
-        )
+        cols = {
+            "profile": self.profile,
+            "start_mm": self.start_mm,
+            "end_mm": self.end_mm,
+            "msd_mm": self.msd_mm,
+            "dropout_pct": self.dropout_pct,
+            "spike_pct": self.spike_pct,
+            "valid": self.valid,
+        }
+        if self.evaluation_end_m.size and np.isfinite(self.evaluation_end_m).any():
+            cols["evaluation_end_m"] = self.evaluation_end_m
+        return pd.DataFrame(cols)
 
 
 @dataclass(frozen=True)
@@ -146,8 +230,8 @@ def _fill(z: np.ndarray, x: np.ndarray) -> None:
 
 def _resample(z: np.ndarray, x: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
     """Bin means at ``step`` (module docstring, step 2): ``(heights, positions)``."""
-    if len(x) > 1 and np.diff(x).mean() == step:
-        return z.copy(), x.copy()
+    if len(x) > 1 and abs(np.diff(x).mean() - step) <= 1e-9 * step:
+        return z, x.copy()
     g = np.ceil(x / step)
     if g[0] == 0:
         g[0] = 1
@@ -182,16 +266,17 @@ def find_plates(
     return start, end
 
 
-def _block(z: np.ndarray, x: np.ndarray, o: MPDOptions, offset_mm: float = 0.0) -> list[tuple]:
-    """Segments of the rows of ``z`` (profiles sharing distances ``x``): a list of per-segment tuples."""
+def _block(z: np.ndarray, x: np.ndarray, o: MPDOptions, step: float, offset_mm: float = 0.0) -> list[tuple]:
+    """Segments of the rows of ``z`` (profiles sharing distances ``x``) at resampled spacing ``step``: a list of
+    per-segment tuples."""
     z = np.array(z, dtype=np.float64)
     drop = np.isnan(z)
     if drop.any():
         _fill(z, x)
-    res, xr = _resample(z, x, o.resample_mm)
+    res, xr = _resample(z, x, step)
     del z
     seg_x, seg_r = _segment_index(x, o.segment_mm), _segment_index(xr, o.segment_mm)
-    nominal = o.segment_mm / o.resample_mm
+    nominal = o.segment_mm / step
     ids, counts = np.unique(seg_r[seg_r >= 0], return_counts=True)
     ids = ids[counts / nominal >= MIN_SEGMENT_COVERAGE]
     if ids.size == 0:
@@ -204,24 +289,35 @@ def _block(z: np.ndarray, x: np.ndarray, o: MPDOptions, offset_mm: float = 0.0) 
         if spike.any():
             res[spike] = np.nan
             _fill(res, xr)
-    if o.lowpass_mm:
-        from scipy import signal  # imported here: 0.8 s of start-up that only MPD needs
+    from scipy import signal  # imported here: 0.8 s of start-up that only MPD needs
 
-        sos = signal.butter(2, (1.0 / o.lowpass_mm) / (0.5 / o.resample_mm), btype="low", output="sos")
+    nyquist = 0.5 / step  # 1/mm
+    if o.evaluation_length_m is not None:
+        sos = signal.butter(2, (1.0 / o.highpass_mm) / nyquist, btype="high", output="sos")
         res = signal.sosfiltfilt(sos, res, axis=1)
+    if o.lowpass_mm:
+        sos = signal.butter(2, (1.0 / o.lowpass_mm) / nyquist, btype="low", output="sos")
+        res = signal.sosfiltfilt(sos, res, axis=1)
+    # segments are contiguous runs of the sorted segment indices
+    r_lo, r_hi = np.searchsorted(seg_r, ids, "left"), np.searchsorted(seg_r, ids, "right")
+    x_lo, x_hi = np.searchsorted(seg_x, ids, "left"), np.searchsorted(seg_x, ids, "right")
     out = []
-    for s in ids:
-        take = seg_r == s
-        n = int(take.sum())
-        xs = xr[take]
-        zs = res[:, take]
-        xm = xs - xs.mean()
-        slope = (zs * xm).sum(axis=1, keepdims=True) / (xm * xm).sum()
-        lev = np.round(zs - zs.mean(axis=1, keepdims=True) - slope * xm, 6)
+    for s, a, b, xa, xb in zip(ids, r_lo, r_hi, x_lo, x_hi):
+        n = int(b - a)
+        zs = res[:, a:b]
+        if o.evaluation_length_m is None:
+            xm = xr[a:b] - xr[a:b].mean()
+            slope = (zs * xm).sum(axis=1, keepdims=True) / (xm * xm).sum()
+            lev = np.round(zs - zs.mean(axis=1, keepdims=True) - slope * xm, 6)
+            end_m = np.nan
+        else:
+            lev = zs
+            first = x[xa] if xb > xa else xr[a]
+            end_m = (np.floor(first / (o.evaluation_length_m * 1000.0)) + 1) * o.evaluation_length_m
         half = n >> 1
         msd = 0.5 * (lev[:, :half].max(axis=1) + lev[:, half:].max(axis=1)) - lev.mean(axis=1)
-        d_ratio = drop[:, seg_x == s].mean(axis=1) if (seg_x == s).any() else np.zeros(len(msd))
-        s_ratio = spike[:, take].mean(axis=1)
+        d_ratio = drop[:, xa:xb].mean(axis=1) if xb > xa else np.zeros(len(msd))
+        s_ratio = spike[:, a:b].mean(axis=1)
         valid = (d_ratio <= o.max_dropout_pct / 100.0) & (s_ratio <= o.max_spike_pct / 100.0)
         for i in range(len(msd)):
             out.append(
@@ -233,6 +329,7 @@ def _block(z: np.ndarray, x: np.ndarray, o: MPDOptions, offset_mm: float = 0.0) 
                     100.0 * d_ratio[i],
                     100.0 * s_ratio[i],
                     bool(valid[i]),
+                    end_m,
                 )
             )
     return out
@@ -243,7 +340,7 @@ def profile_segments(
 ) -> Segments:
     """Evaluate the segments of one profile (1-D ``heights``) or of several sharing distances (2-D, one profile
     per row), heights and distances in mm, NaN heights are dropouts. ``options`` or keyword arguments: the fields
-    of :class:`MPDOptions`."""
+    of :class:`MPDOptions`. Raises :class:`SpacingError` for profiles sampled more coarsely than 1.0 mm."""
     o = options if options is not None else MPDOptions(**kwargs)
     z = np.atleast_2d(np.asarray(heights, dtype=np.float64))
     x = np.asarray(distance_mm, dtype=np.float64)
@@ -251,10 +348,12 @@ def profile_segments(
         raise ValueError(f"profile_segments: {z.shape[1]} heights per profile but {x.shape} distances")
     if len(x) > 1 and not (np.diff(x) > 0).all():
         raise ValueError("profile_segments: distances must increase strictly")
+    step = resampled_spacing_mm(x, o.resample_mm)
+    o.check_lowpass(step)
     rows: list[tuple] = []
     trim = np.full((len(z), 2), np.nan)
     if not o.detect_plates:
-        rows = _block(z, x, o)
+        rows = _block(z, x, o, step)
     else:
         for i, zi in enumerate(z):
             start, end = find_plates(x, zi, o.plate_threshold_mm, o.plate_buffer_mm)
@@ -268,9 +367,9 @@ def profile_segments(
             off = start or 0.0
             if keep.sum() < 2:
                 continue
-            rows += [(i, *r[1:]) for r in _block(zi[keep][None, :], x[keep] - off, o, offset_mm=off)]
+            rows += [(i, *r[1:]) for r in _block(zi[keep][None, :], x[keep] - off, o, step, offset_mm=off)]
     rows.sort(key=lambda r: (r[0], r[1]))
-    cols = list(zip(*rows)) if rows else [[]] * 7
+    cols = list(zip(*rows)) if rows else [[]] * 8
     return Segments(
         profile=np.asarray(cols[0], dtype=np.int64),
         start_mm=np.asarray(cols[1], dtype=float),
@@ -281,6 +380,8 @@ def profile_segments(
         valid=np.asarray(cols[6], dtype=bool),
         trim_start_mm=trim[:, 0],
         trim_end_mm=trim[:, 1],
+        evaluation_end_m=np.asarray(cols[7], dtype=float),
+        spacing_mm=step,
     )
 
 
@@ -320,12 +421,43 @@ def summarise(
     )
 
 
+def evaluation_lengths(segments: Segments):
+    """MPD per evaluation length (step 3a) as a DataFrame, one row per (profile, evaluation length):
+    ``profile``, ``end_m`` (its end, m), ``mpd_mm`` and ``sd_mm`` (mean and SD, ddof 1, of its valid segments'
+    MSD), ``n_segments``, ``n_valid``, ``valid_share`` (0-1) and ``is_valid`` (at least half its segments valid,
+    as captif-slp). Raises ValueError for segments evaluated without evaluation lengths."""
+    import pandas as pd
+
+    if segments.msd_mm.size and not np.isfinite(segments.evaluation_end_m).all():
+        raise ValueError("evaluation_lengths: the segments were evaluated without evaluation_length_m")
+    frame = pd.DataFrame(
+        {
+            "profile": segments.profile,
+            "end_m": segments.evaluation_end_m,
+            "msd": np.where(segments.valid, segments.msd_mm, np.nan),
+            "valid": segments.valid,
+        }
+    )
+    g = frame.groupby(["profile", "end_m"], sort=True)
+    out = pd.DataFrame(
+        {
+            "mpd_mm": g["msd"].mean(),
+            "sd_mm": g["msd"].std(ddof=1),
+            "n_segments": g["valid"].size(),
+            "n_valid": g["valid"].sum(),
+        }
+    ).reset_index()
+    out["valid_share"] = out["n_valid"] / out["n_segments"]
+    out["is_valid"] = out["valid_share"] >= 0.5
+    return out
+
+
 def mean_profile_depth(
     surface: Surface,
     *,
     axis: int = 1,
     segment_mm: float = 100.0,
-    resample_mm: float = 0.5,
+    resample_mm: float | None = None,
     lowpass_mm: float | None = 2.4,
     spike_alpha: float = 3.0,
     max_dropout_pct: float = 10.0,

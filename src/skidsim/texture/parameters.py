@@ -14,7 +14,7 @@ from .features import PRUNING_REFERENCES, feature_parameters, motif_parameters, 
 from .filters import FILL_METHODS, form_degree
 from .furrows import furrow_parameters
 from .height import height_parameters
-from .hybrid import sdq, sdr
+from .hybrid import hybrid_parameters
 from .material_ratio import material_ratio_parameters
 from .segmentation import segment
 from .spatial import spatial_parameters
@@ -216,8 +216,7 @@ def areal_parameters(
         sp = spatial_parameters(zc, dx, dy, s=opt.acf_threshold, on_border=opt.acf_on_border, workers=opt.workers)
         out.update({"Sal": sp.Sal, "Str": sp.Str, "Std": sp.Std})
     if "hybrid" in g:
-        out["Sdq"] = sdq(zc, dx, dy)
-        out["Sdr"] = sdr(zc, dx, dy)
+        out.update(hybrid_parameters(zc, dx, dy))  # one pair of differences for both
     if "material_ratio" in g:
         out.update(material_ratio_parameters(zc, p_pct=opt.vm_p_pct, q_pct=opt.vv_q_pct, n_classes=opt.mr_classes))
     hills = None

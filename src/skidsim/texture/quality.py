@@ -9,14 +9,20 @@ Measures (:func:`scan_quality`, on the scan the texture stage works on, i.e. aft
 * ``spikes_found``: number of 8-connected clusters of replaced points (a 3-point spike counts once).
 * ``tilt_deg``: angle of the least-squares plane through the valid points to the instrument's horizontal,
   degrees; ``tilt_x_mm_per_m`` / ``tilt_y_mm_per_m``: its slopes along x and y, mm per m.
+* ``relief_mm``: the distance between the 0.5th and 99.5th percentiles of the valid heights about the
+  least-squares plane, mm (:func:`relief_mm`): what a pavement texture spans, robust to a tilt and to the spikes and
+  dropout edges of a scan (0.5 % of the points on each side are not counted).
 * ``usable_length_mm``: the longest run of consecutive columns (x, the sliding direction) in which at least
   ``min_column_valid_pct`` % of the points are valid, as an extent ``(n - 1) * dx`` in mm (a whole valid
   LS-40 scan: 2447 x 0.05 = 122.35 mm); to compare with the FE strip length (``mesh.length_mm``, 114.3 mm).
 
 Limits (:class:`QualityOptions`, config block ``quality:``): above ``max_dropout_pct``, ``max_replaced_pct``,
-``max_tilt_deg`` or below ``min_usable_length_mm`` a scan is flagged. :func:`check_quality` then logs a WARNING
-naming the site, the measure, the value and the limit (``action: warn``), or raises :class:`ScanQualityError`
-(``action: stop``).
+``max_tilt_deg`` or below ``min_usable_length_mm`` a scan is flagged; so is a relief outside ``min_relief_mm`` ..
+``max_relief_mm``, a scan that cannot be a pavement surface (one height everywhere; heights in m read as mm, a
+relief of micrometres; a relief of metres). The relief is also checked before any work, by
+:mod:`skidsim.validate` (``skidsim validate`` and the workflow's first rule, :func:`relief_breach`).
+:func:`check_quality` then logs a WARNING naming the site, the measure, the value and the limit
+(``action: warn``), or raises :class:`ScanQualityError` (``action: stop``).
 """
 
 from __future__ import annotations
@@ -25,7 +31,6 @@ import logging
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
-from scipy import ndimage
 
 from skidsim.errors import ConfigError, SkidsimError
 from skidsim.surface import Surface
@@ -48,6 +53,12 @@ class QualityOptions:
     max_tilt_deg: steepest plane, degrees (5: a 2.5 % cross-fall and an 8 % grade give 4.8 degrees).
     min_usable_length_mm: shortest usable strip along x, mm; None: the FE strip length ``mesh.length_mm``.
     min_column_valid_pct: a column counts as usable with at least this share of valid points, %.
+    min_relief_mm, max_relief_mm: the range of :func:`relief_mm` a pavement surface has, mm. Measured on the
+    textures of docs/texture.md (12 sections of the default campaign, 9 flat-binder, chip and porous scans) the
+    relief is 1.4-4.9 x the MPD; the MPD of real surfaces is roughly 0.1-3 mm, so their relief is about
+    0.14-15 mm. 0.05 mm (5 codes of an LS-40's 0.01 mm; a third of the smoothest) and 30 mm (twice the coarsest)
+    leave a margin on both sides and still refuse one height everywhere, heights in m read as mm (a relief of
+    micrometres) and heights in um read as mm or a range of metres.
     action: ``"warn"`` (log a WARNING, mark the site in the quality table and the report) or ``"stop"``.
     """
 
@@ -56,6 +67,8 @@ class QualityOptions:
     max_tilt_deg: float = 5.0
     min_usable_length_mm: float | None = None
     min_column_valid_pct: float = 90.0
+    min_relief_mm: float = 0.05
+    max_relief_mm: float = 30.0
     action: str = "warn"
 
     def __post_init__(self) -> None:
@@ -73,6 +86,12 @@ class QualityOptions:
         v = self.min_usable_length_mm
         if v is not None and not (isinstance(v, (int, float)) and v >= 0):
             bad("min_usable_length_mm", "a length >= 0 mm or null")
+        for key in ("min_relief_mm", "max_relief_mm"):
+            v = getattr(self, key)
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 <= v < float("inf")):
+                bad(key, "a height range >= 0 mm")
+        if not self.min_relief_mm < self.max_relief_mm:
+            bad("max_relief_mm", f"a relief above min_relief_mm ({self.min_relief_mm!r} mm)")
 
     @classmethod
     def from_dict(cls, d: dict | None, strip_length_mm: float | None = None) -> QualityOptions:
@@ -103,6 +122,7 @@ class ScanQuality:
     tilt_y_mm_per_m: float
     usable_length_mm: float
     scan_length_mm: float
+    relief_mm: float = float("nan")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -130,6 +150,45 @@ def plane_slopes(surface: Surface) -> tuple[float, float]:
     return float(sx), float(sy)
 
 
+#: the percentiles (%) of the heights about the plane whose distance is the relief (:func:`relief_mm`)
+RELIEF_PERCENTILES = (0.5, 99.5)
+
+
+def relief_mm(surface: Surface, slopes: tuple[float, float] | None = None) -> float:
+    """The relief of a scan, mm: the distance between the 0.5th and 99.5th percentiles (:data:`RELIEF_PERCENTILES`)
+    of its valid heights about the least-squares plane (``slopes`` from :func:`plane_slopes`, computed when not
+    given; the heights as they are when the valid points lie on one line). NaN without valid points."""
+    h = surface.heights
+    ok = np.isfinite(h)
+    if not ok.any():
+        return float("nan")
+    sx, sy = slopes if slopes is not None else plane_slopes(surface)
+    if np.isfinite(sx) and np.isfinite(sy):
+        x = np.arange(h.shape[1]) * surface.dx
+        y = np.arange(h.shape[0]) * surface.dy
+        r = (h - sx * x[None, :] - sy * y[:, None])[ok]
+    else:
+        r = h[ok]
+    lo, hi = np.percentile(r, RELIEF_PERCENTILES)
+    return float(hi - lo)
+
+
+def relief_breach(relief: float, opt: QualityOptions) -> str | None:
+    """``"relief_mm <value> mm below|above the limit <limit> mm (...)"`` when ``relief`` (mm) is outside the
+    limits of ``opt``, else None (NaN: no valid points, left to the other checks)."""
+    if relief < opt.min_relief_mm:
+        return (
+            f"relief_mm {relief:.3g} mm below the limit min_relief_mm {opt.min_relief_mm:g} mm (no pavement is "
+            "this flat: one height everywhere, or heights in m read as mm)"
+        )
+    if relief > opt.max_relief_mm:
+        return (
+            f"relief_mm {relief:.4g} mm above the limit max_relief_mm {opt.max_relief_mm:g} mm (no pavement "
+            "texture spans this much: heights in um read as mm, or not a pavement scan)"
+        )
+    return None
+
+
 def usable_length_mm(surface: Surface, min_column_valid_pct: float = 90.0) -> float:
     """Longest run of consecutive columns with at least ``min_column_valid_pct`` % valid points, as an extent
     along x in mm: ``(n - 1) * dx`` for a run of n columns (0 for none or one)."""
@@ -154,6 +213,8 @@ def scan_quality(
     if replaced.shape != surface.shape:
         raise ValueError(f"scan_quality: {site}: replaced mask {replaced.shape} is not the scan's {surface.shape}")
     n = surface.heights.size
+    from scipy import ndimage  # here: skidsim.validate imports this module and needs no scipy
+
     _, n_spikes = ndimage.label(replaced, structure=np.ones((3, 3), dtype=bool))
     sx, sy = plane_slopes(surface)
     return ScanQuality(
@@ -169,6 +230,7 @@ def scan_quality(
         tilt_y_mm_per_m=1000.0 * sy,
         usable_length_mm=usable_length_mm(surface, min_column_valid_pct),
         scan_length_mm=surface.width_mm,
+        relief_mm=relief_mm(surface, (sx, sy)),
     )
 
 
@@ -186,6 +248,9 @@ def breaches(q: ScanQuality, opt: QualityOptions) -> list[str]:
             f"usable_length_mm {q.usable_length_mm:.4g} mm below the limit {opt.min_usable_length_mm:g} mm "
             f"(columns with >= {opt.min_column_valid_pct:g} % valid points)"
         )
+    relief = relief_breach(q.relief_mm, opt)
+    if relief:
+        out.append(relief)
     return out
 
 

@@ -30,6 +30,7 @@ from scipy import ndimage
 
 _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 _EIGHT = np.ones((3, 3), dtype=bool)
+_BLOCK_POINTS = 32 * 2448  # points per block of rows in catchment_basins (a few arrays of it fit in cache)
 
 
 def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
@@ -38,14 +39,20 @@ def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
     rows, cols = d.shape
     pad = np.full((rows + 2, cols + 2), np.inf)
     pad[1:-1, 1:-1] = d
-    low = np.array(d, copy=True)
     code = np.full(d.shape, -1, dtype=np.int8)
-    better = np.empty(d.shape, dtype=bool)
-    for k, (oy, ox) in enumerate(_OFFSETS):
-        nb = pad[1 + oy : 1 + oy + rows, 1 + ox : 1 + ox + cols]
-        np.less(nb, low, out=better)  # strictly lower than the lowest so far: first offset wins ties
-        np.minimum(low, nb, out=low)
-        np.copyto(code, np.int8(k), where=better)
+    # blocks of rows, so that the eight passes over a block stay in cache (same result as whole-array passes)
+    block = max(1, min(rows, _BLOCK_POINTS // max(cols, 1)))
+    low = np.empty((block, cols))
+    better = np.empty((block, cols), dtype=bool)
+    for r0 in range(0, rows, block):
+        r1 = min(r0 + block, rows)
+        lo, be, co = low[: r1 - r0], better[: r1 - r0], code[r0:r1]
+        lo[...] = d[r0:r1]
+        for k, (oy, ox) in enumerate(_OFFSETS):
+            nb = pad[1 + oy + r0 : 1 + oy + r1, 1 + ox : 1 + ox + cols]
+            np.less(nb, lo, out=be)  # strictly lower than the lowest so far: first offset wins ties
+            np.minimum(lo, nb, out=lo)
+            np.copyto(co, np.int8(k), where=be)
     del pad, low, better
     sink = code < 0
     markers, n = ndimage.label(sink, structure=_EIGHT)
@@ -54,11 +61,15 @@ def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
     ptr = np.arange(rows * cols, dtype=np.int32)
     ptr += delta[code.ravel()]  # code -1 indexes the trailing 0
     del code
-    for it in range(64):  # pointer doubling: every point ends at the sink of its descent path
-        nxt = ptr[ptr]
-        if it % 3 == 2 and np.array_equal(nxt, ptr):
-            break
-        ptr = nxt
+    # pointer doubling: every point ends at the sink of its descent path (a sink points to itself); three
+    # rounds over every point resolve the paths up to 8 steps, then only the points not yet at a sink jump
+    for _ in range(3):
+        ptr = ptr[ptr]
+    active = np.flatnonzero(ptr[ptr] != ptr)
+    while active.size:
+        nxt = ptr[ptr[active]]
+        ptr[active] = nxt
+        active = active[ptr[nxt] != nxt]
     flat_markers = markers.ravel()
     labels = flat_markers[ptr].reshape(d.shape)
     del ptr
@@ -73,18 +84,28 @@ def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
 def boundary_pairs(labels: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """8-adjacent point pairs in different basins: ``(basin a, basin b, pour height max(d_a, d_b))``
     (0-based basin ids). Consecutive repeats of a pair along a boundary are reduced to their minimum pour;
-    the result is not fully deduplicated."""
+    the result is not fully deduplicated. Pairs are listed per direction (right, down, down-right, down-left),
+    each in raster order of its first point."""
+    rows, cols = labels.shape
+    lf = labels.ravel()
+    df = d.ravel()
     las, lbs, pours = [], [], []
-    for sa, sb in (
-        ((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
-        ((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
-        ((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))),
-        ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))),
-    ):
-        la, lb = labels[sa], labels[sb]
-        m = la != lb
-        x, y = la[m], lb[m]
-        p = np.maximum(d[sa][m], d[sb][m])
+    # (flat offset to the second point, column of the first point whose pair would wrap to another row)
+    for step, wrap in ((1, cols - 1), (cols, None), (cols + 1, cols - 1), (cols - 1, 0)):
+        if step == 0 or step >= lf.size:  # one column: no diagonal pairs; one row: no pairs across rows
+            las.append(lf[:0])
+            lbs.append(lf[:0])
+            pours.append(df[:0])
+            continue
+        m = lf[:-step] != lf[step:]
+        if wrap is not None:
+            m[wrap::cols] = False
+        ia = np.flatnonzero(m)
+        del m
+        ib = ia + step
+        x, y = lf[ia], lf[ib]
+        p = np.maximum(df[ia], df[ib])
+        del ia, ib
         if x.size:
             starts = np.flatnonzero(np.r_[True, (x[1:] != x[:-1]) | (y[1:] != y[:-1])])
             x, y, p = x[starts], y[starts], np.minimum.reduceat(p, starts)
@@ -95,18 +116,74 @@ def boundary_pairs(labels: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def dedupe_edges(a: np.ndarray, b: np.ndarray, pour: np.ndarray, n: int):
-    """Unique unordered pairs ``(lo < hi)`` with their minimum pour height (the saddle)."""
+    """Unique unordered pairs ``(lo < hi)``, ascending by ``lo * (n + 1) + hi``, with their minimum pour height
+    (the saddle)."""
     lo = np.minimum(a, b)
     hi = np.maximum(a, b)
     if lo.size == 0:
         return lo, hi, pour
     key = lo * (n + 1) + hi
-    order = np.argsort(key)
-    key = key[order]
+    del lo, hi
+    uniq, saddle = _unique_min(key, pour, n * (n + 2))
+    return uniq // (n + 1), uniq % (n + 1), saddle
+
+
+def _unique_min(key: np.ndarray, pour: np.ndarray, key_bound: int) -> tuple[np.ndarray, np.ndarray]:
+    """Ascending unique values of ``key`` (int64, ``0 <= key < key_bound``; overwritten) and the minimum of
+    ``pour`` over each."""
+    idx_bits = max(int(key.size - 1).bit_length(), 1)
+    if idx_bits + int(key_bound).bit_length() <= 63:
+        # the position rides in the low bits of the key: one sort of int64 values instead of an argsort
+        key <<= idx_bits
+        key |= np.arange(key.size, dtype=np.int64)
+        key.sort()
+        order = key & ((1 << idx_bits) - 1)
+        key >>= idx_bits
+    else:
+        order = np.argsort(key)
+        key = key[order]
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    saddle = np.minimum.reduceat(pour[order], starts)
-    first = order[starts]
-    return lo[first], hi[first], saddle
+    return key[starts], np.minimum.reduceat(pour[order], starts)
+
+
+def _saddles(labels: np.ndarray, d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``dedupe_edges(*boundary_pairs(labels, d), n)`` in one pass, same result: the pairs of each direction
+    are keyed as unordered pairs at once (runs of one key along a boundary reduced to their minimum pour), and
+    the keys of all directions sorted together."""
+    rows, cols = labels.shape
+    lf = labels.ravel()
+    df = d.ravel()
+    base = n + 1  # key = lo * base + hi on 1-based labels: ascending like the 0-based keys of dedupe_edges
+    keys, pours = [], []
+    for step, wrap in ((1, cols - 1), (cols, None), (cols + 1, cols - 1), (cols - 1, 0)):
+        if step == 0 or step >= lf.size:
+            continue
+        m = lf[:-step] != lf[step:]
+        if wrap is not None:
+            m[wrap::cols] = False
+        ia = np.flatnonzero(m)
+        del m
+        if ia.size == 0:
+            continue
+        ib = ia + step
+        x, y = lf[ia], lf[ib]
+        p = np.maximum(df[ia], df[ib])
+        del ia, ib
+        key = np.minimum(x, y).astype(np.int64)
+        key *= base
+        key += np.maximum(x, y)
+        del x, y
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        keys.append(key[starts])
+        pours.append(np.minimum.reduceat(p, starts))
+    if not keys:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty.copy(), np.empty(0)
+    key = np.concatenate(keys)
+    pour = np.concatenate(pours)
+    del keys, pours
+    uniq, saddle = _unique_min(key, pour, base * base)
+    return uniq // base - 1, uniq % base - 1, saddle
 
 
 def basin_adjacency(labels: np.ndarray, d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -186,9 +263,7 @@ def segment(d: np.ndarray, threshold_mm: float, dx: float, dy: float, keep_label
     flat = d.ravel()
     crit_val = flat[sink]  # basin k (0-based) -> its minimum
     t = float(threshold_mm)
-    ra, rb, rp = boundary_pairs(labels, d)
-    a, b, sad = dedupe_edges(ra, rb, rp, n)
-    del ra, rb, rp
+    a, b, sad = _saddles(labels, d, n)
     motif_root, a, b, sad = _contract_leaves(a, b, sad, crit_val, t)
     roots, motif_of_basin = np.unique(motif_root, return_inverse=True)
     m = roots.size
@@ -199,8 +274,11 @@ def segment(d: np.ndarray, threshold_mm: float, dx: float, dy: float, keep_label
     base = np.full(m, np.inf)
     np.minimum.at(base, ma[diff], sad[diff])
     np.minimum.at(base, mb[diff], sad[diff])
-    pix_motif = motif_of_basin[labels.ravel() - 1]
-    area = np.bincount(pix_motif, minlength=m).astype(float) * dx * dy
+    labf = labels.ravel()
+    # points per motif from the points per basin (exact integer counts, as counting the points directly)
+    area = np.bincount(motif_of_basin, weights=np.bincount(labf, minlength=n + 1)[1:], minlength=m) * dx * dy
+    pix_motif = np.concatenate((motif_of_basin[:1], motif_of_basin))[labf]  # label k -> motif_of_basin[k - 1]
+    del labf
     lone = ~np.isfinite(base)
     if lone.any():
         mx = np.full(m, -np.inf)

@@ -43,6 +43,51 @@ class SpatialResult:
     decay_mm: np.ndarray
 
 
+def _padded_power(z: np.ndarray, workers: int, max_lag_fraction: float):
+    """|F|^2 of the zero-padded rfft2 of the mean-subtracted heights, the padded shape and the lag limits
+    ``(Ly, Lx)`` (see :func:`autocorrelation`)."""
+    rows, cols = z.shape
+    ly = int(np.floor(max_lag_fraction * (rows - 1)))
+    lx = int(np.floor(max_lag_fraction * (cols - 1)))
+    c = z - z.mean()
+    shape = (sfft.next_fast_len(rows + ly, real=True), sfft.next_fast_len(cols + lx, real=True))
+    spec = sfft.rfft2(c, s=shape, workers=workers)
+    del c
+    power = spec.real**2
+    power += spec.imag**2
+    return power, shape, ly, lx
+
+
+class _AcfRows:
+    """Rows of the unbiased ACF for lags ``|ky| <= k`` (every x lag up to ``Lx``), on demand.
+
+    ``irfft2`` of the power spectrum is a complex inverse transform along y followed by a real one along x; the
+    first is done once, the second only for the rows asked for. Every value is bit-identical to the same entry
+    of the whole ACF (``scipy.fft.irfft2``, then the unbiased and ACF(0) normalisations): the same pocketfft
+    transforms on the same data and the same scale factor applied to their output (tested).
+    """
+
+    def __init__(self, power: np.ndarray, shape, rows: int, cols: int, ly: int, lx: int, workers: int = 1):
+        # complex input, as irfft2 converts it (a real input would take pocketfft's symmetric path: other roundings)
+        self.half = sfft.ifft(power.astype(complex), axis=0, norm="forward", workers=workers)
+        self.shape, self.rows, self.cols, self.ly, self.lx, self.workers = tuple(shape), rows, cols, ly, lx, workers
+        # irfft2's scale factor 1 / (ny nx), computed as pocketfft does (long double, rounded once)
+        self.fct = np.float64(1 / np.longdouble(self.shape[0] * self.shape[1]))
+
+    def __call__(self, k: int) -> np.ndarray:
+        """``(2 k + 1, 2 Lx + 1)`` ACF rows for lags ``-k..k`` (``k <= Ly``), zero lag at ``(k, Lx)``."""
+        ny, nx = self.shape
+        lx = self.lx
+        part = sfft.irfft(self.half[np.r_[ny - k : ny, 0 : k + 1]], n=nx, axis=1, norm="forward", workers=self.workers)
+        part *= self.fct
+        acf = part[:, np.r_[nx - lx : nx, 0 : lx + 1]]
+        del part
+        acf /= (self.rows - np.abs(np.arange(-k, k + 1)))[:, None]
+        acf /= (self.cols - np.abs(np.arange(-lx, lx + 1)))[None, :]
+        acf /= acf[k, lx]
+        return acf
+
+
 def autocorrelation(z: np.ndarray, workers: int = 1, return_spectrum: bool = False, max_lag_fraction: float = 1.0):
     """Unbiased linear ACF (normalised, ACF(0)=1) of a complete height array for lags up to
     ``max_lag_fraction`` of the extent (``L = floor(f (n - 1))`` points per axis); the zero lag sits at index
@@ -53,30 +98,28 @@ def autocorrelation(z: np.ndarray, workers: int = 1, return_spectrum: bool = Fal
     shape.
     """
     rows, cols = z.shape
-    ly = int(np.floor(max_lag_fraction * (rows - 1)))
-    lx = int(np.floor(max_lag_fraction * (cols - 1)))
-    c = z - z.mean()
-    shape = (sfft.next_fast_len(rows + ly, real=True), sfft.next_fast_len(cols + lx, real=True))
-    spec = sfft.rfft2(c, s=shape, workers=workers)
-    del c
-    power = spec.real**2
-    power += spec.imag**2
-    amp = power.copy() if return_spectrum else None
-    del spec
-    full = sfft.irfft2(power, s=shape, workers=workers)
-    del power
-    ry = np.r_[shape[0] - ly : shape[0], 0 : ly + 1]
-    rx = np.r_[shape[1] - lx : shape[1], 0 : lx + 1]
-    acf = full[np.ix_(ry, rx)]
-    del full
-    ny = rows - np.abs(np.arange(-ly, ly + 1))
-    nx = cols - np.abs(np.arange(-lx, lx + 1))
-    acf /= ny[:, None]
-    acf /= nx[None, :]
-    acf /= acf[ly, lx]
+    power, shape, ly, lx = _padded_power(z, workers, max_lag_fraction)
+    acf = _AcfRows(power, shape, rows, cols, ly, lx, workers)(ly)
     if return_spectrum:
-        return acf, amp, shape
+        return acf, power, shape
     return acf
+
+
+_CROP_MARGIN = 4  # lags kept around the region above s for the spline of decay_lengths
+_FIRST_WINDOW_LAGS = 128  # rows of the ACF either side of the zero lag tried first by spatial_parameters
+
+
+def _central_crop(acf: np.ndarray, r0: int, c0: int, s: float) -> tuple[int, int, int, int]:
+    """``(ra, rb, ca, cb)``: rows ``ra:rb`` and columns ``ca:cb`` of ``acf`` (zero lag at ``(r0, c0)``), the
+    bounding box of the 4-connected region above ``s`` that holds the origin, widened by ``_CROP_MARGIN`` lags
+    (clipped to the array)."""
+    lab, _ = ndimage.label(acf > s)
+    sl = ndimage.find_objects(lab)[lab[r0, c0] - 1] if lab[r0, c0] else (slice(r0, r0 + 1), slice(c0, c0 + 1))
+    del lab
+    m = _CROP_MARGIN
+    ra, rb = max(sl[0].start - m, 0), min(sl[0].stop + m, acf.shape[0])
+    ca, cb = max(sl[1].start - m, 0), min(sl[1].stop + m, acf.shape[1])
+    return ra, rb, ca, cb
 
 
 def decay_lengths(
@@ -86,6 +129,13 @@ def decay_lengths(
     threshold ``s`` along ``n_angles`` directions in [0, 180) deg (angle from +x towards +y)."""
     r0 = (acf.shape[0] - 1) // 2
     c0 = (acf.shape[1] - 1) // 2
+    ra, rb, ca, cb = _central_crop(acf, r0, c0, s)
+    return _decay_lengths_in_crop(acf[ra:rb, ca:cb], ra, ca, r0, c0, dx, dy, s, n_angles, ray_step)
+
+
+def _decay_lengths_in_crop(crop, ra, ca, r0, c0, dx, dy, s, n_angles, ray_step):
+    """:func:`decay_lengths` from ``crop = acf[ra:rb, ca:cb]`` (:func:`_central_crop`) of an ACF whose zero lag
+    is at ``(r0, c0)`` and whose lag domain is ``r0`` rows and ``c0`` columns either side of it."""
     max_ly = r0 * dy  # mm
     max_lx = c0 * dx
     theta = np.arange(n_angles) * (np.pi / n_angles)
@@ -100,13 +150,7 @@ def decay_lengths(
     out = np.full(n_angles, np.nan)
     # cubic interpolation on a crop around the central region above s (bounding box + margin): the crossing of
     # every ray lies inside it, and the spline prefilter stays cheap
-    lab, _ = ndimage.label(acf > s)
-    sl = ndimage.find_objects(lab)[lab[r0, c0] - 1] if lab[r0, c0] else (slice(r0, r0 + 1), slice(c0, c0 + 1))
-    del lab
-    m = 4
-    ra, rb = max(sl[0].start - m, 0), min(sl[0].stop + m, acf.shape[0])
-    ca, cb = max(sl[1].start - m, 0), min(sl[1].stop + m, acf.shape[1])
-    coef = ndimage.spline_filter(acf[ra:rb, ca:cb], order=3, mode="nearest")
+    coef = ndimage.spline_filter(crop, order=3, mode="nearest")
     # march rays in chunks of distance so that short decays do not pay for the whole domain
     chunk = 256
     alive = np.ones(n_angles, dtype=bool)
@@ -177,11 +221,25 @@ def spatial_parameters(
     """Sal (mm), Str, Std (deg) of a complete height array (mm); see the module docstring."""
     if on_border not in ("nan", "bound"):
         raise ValueError(f"on_border must be 'nan' or 'bound', got {on_border!r}")
-    acf, amp, shape = autocorrelation(z, workers=workers, return_spectrum=True, max_lag_fraction=max_lag_fraction)
-    std = texture_direction(amp, shape, dx, dy, std_step_deg)
-    del amp
-    ang, lengths = decay_lengths(acf, dx, dy, s=s, n_angles=n_angles)
-    del acf
+    rows, cols = z.shape
+    power, shape, ly, lx = _padded_power(z, workers, max_lag_fraction)
+    std = texture_direction(power, shape, dx, dy, std_step_deg)
+    acf_rows = _AcfRows(power, shape, rows, cols, ly, lx, workers)
+    del power
+    # Only the rows of the ACF around the region above s are needed (decay_lengths' crop). Rows |ky| <= k are
+    # computed for a growing k until that region (with the crop's margin) ends inside them; then the region,
+    # the crop and every decay length are those of the whole ACF (a 4-connected region that does not reach the
+    # first or last row of the window cannot continue outside it).
+    k = min(ly, _FIRST_WINDOW_LAGS)
+    while True:
+        win = acf_rows(k)
+        ra, rb, ca, cb = _central_crop(win, k, lx, s)
+        if k == ly or (ra > 0 and rb < win.shape[0]):
+            break
+        k = min(ly, 4 * k)
+    crop = win[ra:rb, ca:cb]
+    del win, acf_rows
+    ang, lengths = _decay_lengths_in_crop(crop, ra + ly - k, ca, ly, lx, dx, dy, s, n_angles, 0.25)
     within = bool(np.isfinite(lengths).all())
     if not np.isfinite(lengths).any():
         return SpatialResult(np.nan, np.nan, std, False, ang, lengths)

@@ -1,0 +1,246 @@
+"""Rates of the model criticism by effect kind and texture source (issue 33, item 4: "Rates, not anecdotes").
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/diagnosis_rates.py --seeds 0-19 --jobs 2 \
+        [--generators default,chips,spectral] [--kinds none,section_column,...] [--n-permutations 4999] \
+        [--n-boot 200] [--out results/diagnosis_rates] [--cache DIR]
+
+Campaigns: tests/diagnosis_rate_campaigns.py (36 sites, 12 sections; the FE replaced by a per-site calibration of
+the exponential-decay law, the texture model by a physics2@dft-like least squares on log MPD and log micro Sq; the
+texture of chips and spectral from the generators' own surfaces, cached per design in ``--cache``). Per generator
+x kind x seed the whole diagnosis (:func:`skidsim.criticism.diagnose`, ``DiagnosisOptions(seed=seed, n_boot=...,
+n_permutations=...)``) sees only the campaign tables; the truth is used only to score:
+
+* ``named_top``: the named cause (first, significant) is the hidden variable or holds it in its group; for
+  ``texture_speed`` also the texture model (a texture-model candidate, ``texture_model[...]``); for
+  ``texture_measure`` (the driving measure is not in the table) the texture model or a texture parameter
+  (``source`` in texture / texture_model). For ``none`` the column is empty;
+* ``false_named``: a cause other than the texture model is named (the top cause); ``false_any``: some significant
+  cause other than the texture model (any rank); ``false_nontexture``: the named cause is neither the texture model
+  nor a texture parameter (a texture parameter named on a null is a misfit of the texture model in another
+  name); ``section_unexplained``: the named cause is section identity labelled ``section (unexplained)``;
+* ``gain_established``: where named, the gain interval at held-out sites excludes 0 (``gain.json``'s
+  held_out_sites scope; a within-site cause's scope is held-out speeds, recorded in ``gain_scope``).
+
+Prints a markdown table (per generator x kind: n seeds, named-top share, false naming share for none, gain
+established share among named) and writes ``<out>/rates.csv`` (one row per campaign) and ``<out>/table.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from diagnosis_rate_campaigns import KINDS  # noqa: E402 (tests/ on the path first)
+
+
+def seed_range(text: str) -> list[int]:
+    out = []
+    for part in text.split(","):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b or a) + 1))
+    return out
+
+
+def is_texture_model(c) -> bool:
+    return getattr(c, "source", "") == "texture_model" or str(c.variable).startswith("texture_model[")
+
+
+def is_texture(c) -> bool:
+    return getattr(c, "source", "") in ("texture", "texture_model") or is_texture_model(c)
+
+
+def hit(c, truth: dict) -> bool:
+    """Whether the named cause ``c`` is the hidden variable (module docstring)."""
+    if c is None:
+        return False
+    kind, hidden = truth["kind"], truth["variable"]
+    if kind == "texture_measure":
+        return is_texture(c)
+    if kind == "texture_speed" and is_texture_model(c):
+        return True
+    return hidden is not None and (c.variable == hidden or hidden in (c.group or ()))
+
+
+def label(c) -> str:
+    if c is None:
+        return ""
+    lab = getattr(c, "label", "") or ""
+    name = lab if "unexplained" in lab else c.variable
+    return f"{name} ({c.level}, {c.kind})"
+
+
+def run_one(args: tuple) -> dict:
+    """One campaign: generate, diagnose, score."""
+    import os
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    from diagnosis_rate_campaigns import make_rate_campaign
+
+    from skidsim import criticism as cr
+    from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
+
+    source, kind, seed, n_perm, n_boot, cache, screen_only = args
+    t0 = time.perf_counter()
+    t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache)
+    inputs = DiagnosisInputs(
+        t["sites"],
+        t["measured"],
+        t["simulated"],
+        t["predicted"],
+        t["texture"],
+        prediction_model="physics2-like",
+        prediction_features=t["prediction_features"],
+    )
+    opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot)
+    if screen_only:  # the screening of cr.diagnose, without the extension and its gain
+        from skidsim.criticism.adjustment import texture_model_scores
+
+        res = cr.build_residuals(inputs.sites, inputs.measured, inputs.simulated, inputs.predicted)
+        pcs, _ = texture_model_scores(
+            res, inputs.sites, inputs.texture, opts.speed_bin_kmh, cr.DEFAULT_EXCLUDE, lead=inputs.prediction_features
+        )
+        causes = cr.screen_candidates(
+            res, inputs.sites, inputs.texture, opts, texture_pc_scores=pcs, texture_lead=inputs.prediction_features
+        )
+        gain, top = {}, cr.named_cause(causes)
+    else:
+        r = cr.diagnose(inputs, opts)
+        causes, gain, top = r.causes, r.gain, r.named
+    sig = [c for c in causes if c.significant]
+    scope = gain.get("scope")
+    sites_scope = (gain.get("scopes") or {}).get("held_out_sites") or {}
+    own = (gain.get("scopes") or {}).get(scope) or {}
+    gain_sites = bool(sites_scope.get("gain_excludes_zero")) if (top is not None and gain) else None
+    return {
+        "generator": source,
+        "kind": kind,
+        "seed": seed,
+        "hidden": truth["variable"],
+        "effect_sd_mu": truth["effect_sd_mu"],
+        "effect_rms_mu": truth["effect_rms_mu"],
+        "named": label(top),
+        "named_variable": top.variable if top is not None else "",
+        "named_source": getattr(top, "source", "") if top is not None else "",
+        "named_p_adjusted": top.p_adjusted if top is not None else float("nan"),
+        "named_top": hit(top, truth) if kind != "none" else None,
+        "false_named": top is not None and not is_texture_model(top),
+        "false_any": any(not is_texture_model(c) for c in sig),
+        "false_nontexture": top is not None and not is_texture(top),
+        "texture_model_named": top is not None and is_texture_model(top),
+        "section_unexplained": top is not None and "unexplained" in (getattr(top, "label", "") or ""),
+        "named_label": (getattr(top, "label", "") or "") if top is not None else "",
+        "n_significant": len(sig),
+        "gain_scope": scope if top is not None else "",
+        "gain_established": gain_sites,
+        "gain_established_own_scope": bool(own.get("gain_excludes_zero")) if (top is not None and gain) else None,
+        "gain_sites_ci_low": (sites_scope.get("rmse_gain_ci") or [float("nan")])[0] if top is not None else None,
+        "n_permutations": causes[0].n_permutations if causes else 0,
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
+def share(x) -> str:
+    x = [bool(v) for v in x if v is not None and v == v]
+    return f"{sum(x)} / {len(x)}" if x else "-"
+
+
+def table(df: pd.DataFrame) -> str:
+    lines = [
+        "| generator | kind | seeds | hidden variable named top | null: named top other than the texture model "
+        "(other than a texture cause; any significant other than the texture model) "
+        "| gain at held-out sites established, where named | named instead (most often) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for (g, k), d in df.groupby(["generator", "kind"], sort=False):
+        if k == "none":
+            named_top = "-"
+            false = f"{share(d['false_named'])} ({share(d['false_nontexture'])}; {share(d['false_any'])})"
+            tm = int(d["texture_model_named"].sum())
+            if tm:
+                false += f" (texture model named in {tm})"
+            su = int(d["section_unexplained"].sum())
+            if su:
+                false += f" (section (unexplained) in {su})"
+        else:
+            named_top = share(d["named_top"])
+            false = "-"
+        named = d[d["named"] != ""]
+        gain = share(named["gain_established"]) if len(named) else "-"
+        miss = d[(d["named_top"] != True) & (d["named"] != "")]  # noqa: E712 (None for none)
+        other = miss["named"].value_counts()
+        inst = "; ".join(f"{v} x{c}" for v, c in other.head(2).items())
+        n_nothing = int((d["named"] == "").sum())
+        if n_nothing and k != "none":
+            inst = (inst + "; " if inst else "") + f"nothing x{n_nothing}"
+        lines.append(f"| {g} | {k} | {len(d)} | {named_top} | {false} | {gain} | {inst} |")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="0-19")
+    ap.add_argument("--generators", default="default,chips,spectral")
+    ap.add_argument("--kinds", default=",".join(KINDS))
+    ap.add_argument("--n-permutations", type=int, default=None, help="default: auto (DiagnosisOptions)")
+    ap.add_argument("--n-boot", type=int, default=200)
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument(
+        "--screen-only", action="store_true", help="the screening only (named causes; no extension, no gain)"
+    )
+    ap.add_argument("--out", default=str(ROOT / "results" / "diagnosis_rates"))
+    ap.add_argument("--cache", default=str(ROOT / "results" / "diagnosis_rates" / "texture_cache"))
+    a = ap.parse_args(argv)
+    seeds = seed_range(a.seeds)
+    gens = [g for g in a.generators.split(",") if g]
+    kinds = [k for k in a.kinds.split(",") if k]
+    for k in kinds:
+        if k not in KINDS:
+            ap.error(f"--kinds: unknown {k!r}; expected some of {','.join(KINDS)}")
+    from diagnosis_rate_campaigns import N_DESIGNS, generator_texture
+
+    t0 = time.perf_counter()
+    for g in {g.partition("-")[0] for g in gens}:  # the texture tables first (cached): workers only read them
+        if g != "default":
+            for d in sorted({s % N_DESIGNS for s in seeds}):
+                generator_texture(g, d, a.cache)
+    jobs = [(g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only) for g in gens for k in kinds for s in seeds]
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    def record(r):  # one row per campaign, the CSV rewritten after each (an interrupted run keeps its rows)
+        rows.append(r)
+        pd.DataFrame(rows).to_csv(out / "rates.csv", index=False)
+        print(
+            f"{r['generator']} {r['kind']} seed {r['seed']}: {r['named'] or 'nothing'} "
+            f"(hit {r['named_top']}, gain {r['gain_established']}, {r['wall_s']:.1f} s)",
+            flush=True,
+        )
+
+    rows = []
+    if a.jobs > 1:
+        with ProcessPoolExecutor(a.jobs) as ex:
+            for r in ex.map(run_one, jobs):
+                record(r)
+    else:
+        for j in jobs:
+            record(run_one(j))
+    df = pd.DataFrame(rows)
+    md = table(df)
+    (out / "table.md").write_text(md + "\n")
+    print(md)
+    print(
+        f"{len(df)} campaigns, wall {time.perf_counter() - t0:.0f} s, median {df['wall_s'].median():.1f} s per "
+        f"campaign (one process), permutations {int(df['n_permutations'].median())}"
+    )
+
+
+if __name__ == "__main__":
+    main()

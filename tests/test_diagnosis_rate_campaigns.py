@@ -1,0 +1,123 @@
+"""The campaign builders of the rates by effect kind (tests/diagnosis_rate_campaigns.py) and the generators' hidden
+texture effects (skidsim.generators.friction_models.hidden_factor: hysteresis, contact_micro): effect sizes as
+specified, the null has no effect, every kind has the same sites.csv columns."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+import diagnosis_rate_campaigns as rc
+
+
+@pytest.fixture(scope="module")
+def chips_texture():
+    # small scans: the builders only need a texture table of the generator's surfaces
+    return rc.generator_texture("chips", 0, shape=(480, 480))
+
+
+def _noise_free(source, kind, seed=3, texture=None):
+    sites, measured, tex, truth = rc.generate(source, kind, seed, noise_mu=0.0, trace_step_kmh=0, texture=texture)
+    wide = measured.pivot_table(index="site", columns="speed_kmh", values="mu").loc[sites["site"]]
+    return sites, wide, tex, truth
+
+
+@pytest.mark.parametrize("source", ["default", "chips", "chips-nosection"])
+def test_effect_kinds_change_friction_as_specified(source, chips_texture):
+    texture = None if source == "default" else chips_texture
+    sites, none, tex, t0 = _noise_free(source, "none", texture=texture)
+    assert t0["effect_sd_mu"] == 0.0 and t0["variable"] is None
+    v = none.columns.to_numpy(float)
+    columns = list(sites.columns)
+    for kind in rc.KINDS[1:]:
+        s, mu, tx, truth = _noise_free(source, kind, texture=texture)
+        assert list(s.columns) == columns and s.equals(sites) and tx.equals(tex)  # only the friction differs
+        assert truth["effect_rms_mu"] > 0.005, (kind, truth)
+        if kind == "section_column":
+            factor = 1 - rc.POLISH_PER_MSA * (sites["cum_traffic_msa"].to_numpy() - 10.0)
+            assert np.allclose(mu.to_numpy(), none.to_numpy() * factor[:, None])
+            assert sites.groupby("section")["cum_traffic_msa"].nunique().max() == 1  # section level
+        elif kind == "site_column":
+            factor = 1 - rc.STATION_PER_FT * sites["station_ft"].to_numpy()
+            assert np.allclose(mu.to_numpy(), none.to_numpy() * factor[:, None])
+        elif kind == "texture_speed":
+            sdq = tex["macro_Sdq"].to_numpy()
+            z = (sdq - sdq.mean()) / sdq.std()
+            assert np.allclose(mu.to_numpy() - none.to_numpy(), rc.HYST_MU * z[:, None] * (v - 20) / 50)
+        elif kind == "categorical_speed":
+            pol = (sites["aggregate"] == rc.POLISHED).to_numpy()
+            assert pol.sum() == 3 * rc.SITES_PER_SECTION
+            d = mu.to_numpy() - none.to_numpy()
+            assert np.allclose(d[~pol], 0) and np.allclose(d[pol], -0.08 * np.clip((60 - v) / 40, 0, 1))
+        elif kind == "temperature":
+            d = (mu.to_numpy() - none.to_numpy()).mean(axis=1)
+            warm = sites["temperature_c"].to_numpy() - rc.WLF["t_ref_c"]
+            # a colder rubber behaves as at a higher slip speed: lower friction on a falling curve
+            assert np.corrcoef(warm, d)[0, 1] > 0.8, np.corrcoef(warm, d)
+        elif kind == "texture_measure":
+            assert "hidden_micro_contact" not in tx.columns and "micro_Sq" in tx.columns
+            ratio = mu.to_numpy() / none.to_numpy()
+            if source != "default":  # PIARC: the level changes, not the speed dependence
+                assert np.allclose(ratio, ratio[:, :1])
+            assert np.ptp(ratio) > 0.05
+
+
+def test_wlf_shift_constants():
+    assert rc.wlf_log10_shift(20.0) == 0.0
+    assert rc.wlf_log10_shift(10.0) == pytest.approx(8.86 * 10 / 91.6)
+
+
+def test_campaign_tables_hold_no_hidden_measure_and_predict_held_out_sections(chips_texture):
+    t, truth = rc.make_rate_campaign("chips", "texture_measure", 5, texture=chips_texture)
+    assert not any(c.startswith("hidden_") for c in t["texture"].columns)
+    assert t["prediction_features"] == ("log(profile_MPD)", "log(micro_Sq)")
+    assert set(t["predicted"]["site"]) == set(t["sites"]["site"]) and t["predicted"]["sn_pred"].notna().all()
+    # physics2-like: a held-out section's prediction does not change with its own calibrated curves
+    sim = t["simulated"].copy()
+    own = sim["site"].str.startswith("S01-")
+    sim.loc[own, "sn"] += 0.1
+    p2 = rc.physics2_predictions(sim, t["sites"], t["texture"])
+    keep = p2["site"].str.startswith("S01-")
+    assert np.allclose(p2.loc[keep, "sn_pred"], t["predicted"].loc[keep.to_numpy(), "sn_pred"])
+    assert not np.allclose(p2.loc[~keep, "sn_pred"], t["predicted"].loc[(~keep).to_numpy(), "sn_pred"])
+
+
+def test_generator_hidden_texture_effects():
+    from skidsim.errors import ConfigError
+    from skidsim.generators import campaign as gc
+    from skidsim.generators import friction_models as fm
+
+    v = np.array([20.0, 45.0, 70.0])
+    f = fm.hidden_factor("hysteresis", 0.8, 80.0, v, macro_sdq=0.75)
+    assert np.allclose(f, 1 + 0.8 * 0.25 * (v - 20) / 50)
+    r = fm.hidden_factor("contact_micro", 2.0, 80.0, v, micro_contact_mm=0.01, micro_sq_mm=0.03, sq_ref_mm=0.015)
+    assert np.allclose(r, fm.level_from_micro(0.02, 0.015) / fm.level_from_micro(0.03, 0.015))
+    with pytest.raises(ConfigError):
+        fm.hidden_factor("hysteresis", 0.8, 80.0, v)
+    for effect, key in (("hysteresis", "macro_sdq"), ("contact_micro", "micro_contact_mm")):
+        cfg = gc.generator_config(
+            "spectral",
+            {
+                "n_sites": 2,
+                "n_sections": 1,
+                "shape": [100, 150],
+                "spacing_mm": 0.2,
+                "seed": 1,
+                "friction": {"hidden_effect": effect, "hidden_kappa": 1.0},
+            },
+        )
+        row = gc.design_campaign(cfg).iloc[0]
+        site = gc.generate_site(row, cfg)
+        h = site.truth["hidden"]
+        assert h["effect"] == effect and h[key] > 0
+        plain = {**site.truth, "hidden": {**h, "effect": None}}
+        ratio = gc.site_mu(site.truth, v) / gc.site_mu(plain, v)
+        extra = {k: h[k] for k in ("macro_sdq", "micro_contact_mm", "micro_sq_mm", "sq_ref_mm") if k in h}
+        assert np.allclose(ratio, fm.hidden_factor(effect, 1.0, h["sp_kmh"], v, **extra))
+    # campaigns without these effects record no extra measure (their bytes are unchanged)
+    cfg = gc.generator_config("spectral", {"n_sites": 1, "shape": [100, 150], "spacing_mm": 0.2, "seed": 1})
+    assert set(gc.generate_site(gc.design_campaign(cfg).iloc[0], cfg).truth["hidden"]) == {"effect", "kappa", "sp_kmh"}
