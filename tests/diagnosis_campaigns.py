@@ -137,20 +137,7 @@ def generate_campaign(
             mu = mu + MIX_OFFSET[mix[i]]
         return mu
 
-    rows = []
-    trace_v = np.arange(20.0, 80.0 + 1e-9, trace_step_kmh) if trace_step_kmh else np.array([])
-    for i in range(n):
-        for kind, vs, sd in (
-            ("calibration", SPEEDS_CAL_KMH, noise_mu),
-            ("validation", SPEEDS_VAL_KMH, noise_mu),
-            ("trace", trace_v, 1.5 * noise_mu),
-        ):
-            vs = np.asarray(vs, float)
-            if len(vs) == 0:
-                continue
-            y = truth_mu(i, vs) + sd * rng.normal(size=len(vs))
-            rows += [(site[i], float(v), float(m), kind) for v, m in zip(vs, y)]
-    measured = pd.DataFrame(rows, columns=["site", "speed_kmh", "mu", "kind"])
+    measured = measured_points(site, truth_mu, noise_mu, trace_step_kmh, rng)
     truth = {
         "effect": effect,
         "variable": {
@@ -232,6 +219,26 @@ def derive_tables(sites: pd.DataFrame, measured: pd.DataFrame, tex: pd.DataFrame
 # ---------------------------------------------------------------------------------------------------------------
 
 TEXTURE_FILE = "texture.csv"
+
+
+def measured_points(site, truth_mu, noise_mu: float, trace_step_kmh: float, rng) -> pd.DataFrame:
+    """DFT points of every site: ``truth_mu(i, v)`` plus white noise of ``noise_mu`` (mu) at the calibration and
+    validation speeds and 1.5 times that on a trace every ``trace_step_kmh`` km/h from 20 to 80 km/h (none for 0);
+    columns site, speed_kmh, mu, kind. Draws from ``rng`` site by site, in that order of kinds."""
+    trace_v = np.arange(20.0, 80.0 + 1e-9, trace_step_kmh) if trace_step_kmh else np.array([])
+    rows = []
+    for i in range(len(site)):
+        for kind, vs, sd in (
+            ("calibration", SPEEDS_CAL_KMH, noise_mu),
+            ("validation", SPEEDS_VAL_KMH, noise_mu),
+            ("trace", trace_v, 1.5 * noise_mu),
+        ):
+            vs = np.asarray(vs, float)
+            if len(vs) == 0:
+                continue
+            y = truth_mu(i, vs) + sd * rng.normal(size=len(vs))
+            rows += [(site[i], float(v), float(m), kind) for v, m in zip(vs, y)]
+    return pd.DataFrame(rows, columns=["site", "speed_kmh", "mu", "kind"])
 
 
 def write_campaign(directory, seed: int, effect: str | None = None, **kw) -> dict:

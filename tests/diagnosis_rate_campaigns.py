@@ -57,7 +57,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from diagnosis_campaigns import SPEEDS_CAL_KMH, SPEEDS_VAL_KMH, derive_tables
+from diagnosis_campaigns import derive_tables, measured_points
 
 KINDS = (
     "none",
@@ -364,21 +364,8 @@ def generate(
 
     noise = noise_mu if noise_mu is not None else (0.005 if source == "default" else 0.007)  # mu per DFT point
     rng_n = _rng(seed, source, kind, "noise")
-    trace_v = np.arange(20.0, 80.0 + 1e-9, trace_step_kmh) if trace_step_kmh else np.array([])
-    rows = []
     site = tex["site"].astype(str).tolist()
-    for i in range(n):
-        for k, vs, sd in (
-            ("calibration", SPEEDS_CAL_KMH, noise),
-            ("validation", SPEEDS_VAL_KMH, noise),
-            ("trace", trace_v, 1.5 * noise),
-        ):
-            vs = np.asarray(vs, float)
-            if len(vs) == 0:
-                continue
-            y = truth_mu(i, vs) + sd * rng_n.normal(size=len(vs))
-            rows += [(site[i], float(v), float(m), k) for v, m in zip(vs, y)]
-    measured = pd.DataFrame(rows, columns=["site", "speed_kmh", "mu", "kind"])
+    measured = measured_points(site, truth_mu, noise, trace_step_kmh, rng_n)
     grid = np.arange(20.0, 70.0 + 1e-9, 5.0)
     eff = np.array([truth_mu(i, grid) - plain(i, grid) for i in range(n)]) if kind != "none" else np.zeros((n, 1))
     table = tex[[c for c in tex.columns if c != "section" and not c.startswith("hidden_")]].copy()
