@@ -13,7 +13,10 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
 * ``named_top``: the named cause (first, significant) is the hidden variable or holds it in its group; for
   ``texture_speed`` also the texture model (a texture-model candidate, ``texture_model[...]``); for
   ``texture_measure`` (the driving measure is not in the table) the texture model or a texture parameter
-  (``source`` in texture / texture_model). For ``none`` the column is empty;
+  (``source`` in texture / texture_model). For ``none`` the column is empty, except on the robustness sources
+  ``<generator>+sectionlatent`` (the generator's random section factors kept: a hidden section-level effect that
+  nothing in the tables carries), where the right answer is ``section (unexplained)`` and the false-naming columns
+  are empty. The plain ``chips`` / ``spectral`` sources hide one effect per campaign (no section factors);
 * ``false_named``: a cause other than the texture model is named (the top cause); ``false_any``: some significant
   cause other than the texture model (any rank); ``false_nontexture``: the named cause is neither the texture model
   nor a texture parameter (a texture parameter named on a null is a misfit of the texture model in another
@@ -21,7 +24,8 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
 * ``gain_established``: where named, the gain interval at held-out sites excludes 0 (``gain.json``'s
   held_out_sites scope; a within-site cause's scope is held-out speeds, recorded in ``gain_scope``).
 
-Prints a markdown table (per generator x kind: n seeds, named-top share, false naming share for none, gain
+Prints a markdown table (per generator x kind: the median effect size, sd over sites of the effect's mean over
+20-70 km/h in mu, n seeds, named-top share, false naming share for none, gain
 established share among named) and writes ``<out>/rates.csv`` (one row per campaign) and ``<out>/table.md``.
 """
 
@@ -38,7 +42,7 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from diagnosis_rate_campaigns import KINDS  # noqa: E402 (tests/ on the path first)
+from diagnosis_rate_campaigns import KINDS, SECTION_LATENT, generator_of  # noqa: E402 (tests/ on the path first)
 
 
 def seed_range(text: str) -> list[int]:
@@ -57,11 +61,17 @@ def is_texture(c) -> bool:
     return getattr(c, "source", "") in ("texture", "texture_model") or is_texture_model(c)
 
 
+def is_section_unexplained(c) -> bool:
+    return c is not None and "unexplained" in (getattr(c, "label", "") or "")
+
+
 def hit(c, truth: dict) -> bool:
     """Whether the named cause ``c`` is the hidden variable (module docstring)."""
     if c is None:
         return False
     kind, hidden = truth["kind"], truth["variable"]
+    if kind == "none" and truth["source"].endswith(SECTION_LATENT):
+        return is_section_unexplained(c)  # the generator's random section factors are the hidden effect
     if kind == "texture_measure":
         return is_texture(c)
     if kind == "texture_speed" and is_texture_model(c):
@@ -115,6 +125,7 @@ def run_one(args: tuple) -> dict:
         r = cr.diagnose(inputs, opts)
         causes, gain, top = r.causes, r.gain, r.named
     sig = [c for c in causes if c.significant]
+    latent = source.endswith(SECTION_LATENT)
     scope = gain.get("scope")
     sites_scope = (gain.get("scopes") or {}).get("held_out_sites") or {}
     own = (gain.get("scopes") or {}).get(scope) or {}
@@ -130,12 +141,12 @@ def run_one(args: tuple) -> dict:
         "named_variable": top.variable if top is not None else "",
         "named_source": getattr(top, "source", "") if top is not None else "",
         "named_p_adjusted": top.p_adjusted if top is not None else float("nan"),
-        "named_top": hit(top, truth) if kind != "none" else None,
-        "false_named": top is not None and not is_texture_model(top),
-        "false_any": any(not is_texture_model(c) for c in sig),
-        "false_nontexture": top is not None and not is_texture(top),
+        "named_top": hit(top, truth) if (kind != "none" or latent) else None,
+        "false_named": top is not None and not is_texture_model(top) if not latent else None,
+        "false_any": any(not is_texture_model(c) for c in sig) if not latent else None,
+        "false_nontexture": top is not None and not is_texture(top) if not latent else None,
         "texture_model_named": top is not None and is_texture_model(top),
-        "section_unexplained": top is not None and "unexplained" in (getattr(top, "label", "") or ""),
+        "section_unexplained": is_section_unexplained(top),
         "named_label": (getattr(top, "label", "") or "") if top is not None else "",
         "n_significant": len(sig),
         "gain_scope": scope if top is not None else "",
@@ -154,13 +165,16 @@ def share(x) -> str:
 
 def table(df: pd.DataFrame) -> str:
     lines = [
-        "| generator | kind | seeds | hidden variable named top | null: named top other than the texture model "
+        "| generator | kind | effect size (mu, median) | seeds | hidden variable named top "
+        "| null: named top other than the texture model "
         "(other than a texture cause; any significant other than the texture model) "
         "| gain at held-out sites established, where named | named instead (most often) |",
-        "|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for (g, k), d in df.groupby(["generator", "kind"], sort=False):
-        if k == "none":
+        if k == "none" and g.endswith(SECTION_LATENT):  # the section factors are the hidden effect
+            named_top, false = share(d["named_top"]) + " (section (unexplained))", "-"
+        elif k == "none":
             named_top = "-"
             false = f"{share(d['false_named'])} ({share(d['false_nontexture'])}; {share(d['false_any'])})"
             tm = int(d["texture_model_named"].sum())
@@ -175,12 +189,13 @@ def table(df: pd.DataFrame) -> str:
         named = d[d["named"] != ""]
         gain = share(named["gain_established"]) if len(named) else "-"
         miss = d[(d["named_top"] != True) & (d["named"] != "")]  # noqa: E712 (None for none)
+        size = f"{d['effect_sd_mu'].median():.3f}" if k != "none" else "-"
         other = miss["named"].value_counts()
         inst = "; ".join(f"{v} x{c}" for v, c in other.head(2).items())
         n_nothing = int((d["named"] == "").sum())
         if n_nothing and k != "none":
             inst = (inst + "; " if inst else "") + f"nothing x{n_nothing}"
-        lines.append(f"| {g} | {k} | {len(d)} | {named_top} | {false} | {gain} | {inst} |")
+        lines.append(f"| {g} | {k} | {size} | {len(d)} | {named_top} | {false} | {gain} | {inst} |")
     return "\n".join(lines)
 
 
@@ -207,7 +222,7 @@ def main(argv=None):
     from diagnosis_rate_campaigns import N_DESIGNS, generator_texture
 
     t0 = time.perf_counter()
-    for g in {g.partition("-")[0] for g in gens}:  # the texture tables first (cached): workers only read them
+    for g in {generator_of(g) for g in gens}:  # the texture tables first (cached): workers only read them
         if g != "default":
             for d in sorted({s % N_DESIGNS for s in seeds}):
                 generator_texture(g, d, a.cache)

@@ -19,14 +19,19 @@ Texture sources and friction truths (the friction law of each source is its own,
 * ``chips`` / ``spectral``: the texture of :mod:`skidsim.generators` (clean surfaces rendered by the generator's
   own texture model for its section and site draws, on small scans, :data:`SCAN`), measured by
   :func:`texture_table_of_surface`; friction the generator's own model (``chips``: PIARC/IFI, ``spectral``: Rado;
-  :mod:`skidsim.generators.friction_models`) with the generator's section and site random factors on the level
-  and on Sp (:data:`skidsim.generators.campaign.COMMON`). The texture tables of a few designs per generator
+  :mod:`skidsim.generators.friction_models`) with the generator's site random factors on the level and on Sp
+  (:data:`skidsim.generators.campaign.COMMON`) but not its section factors: those are a hidden section-level effect
+  of their own, so with them a campaign would hide two effects. ``chips+sectionlatent`` /
+  ``spectral+sectionlatent`` keep them (:data:`SECTION_LATENT`): a robustness source whose null's right answer is
+  ``section (unexplained)``. The texture tables of a few designs per generator
   (:data:`N_DESIGNS`) are computed once and cached (:func:`generator_texture`); campaign seed ``s`` uses design
   ``s % N_DESIGNS`` and draws everything else (friction random factors, decoys, temperatures, DFT noise) afresh.
 
 Effect kinds and sizes (``size`` scales each; 1 = the sizes below, chosen near the default campaign's hidden
 effects: the seasonal temperature step of the workflow test, sd 0.038 mu; the mix offset -0.05 on 3 of 12
-sections; station_ft -0.03 % per ft):
+sections; station_ft -0.03 % per ft). The size of an effect is the sd over sites of its mean over 20-70 km/h
+(``truth["effect_sd_mu"]``); the two speed-shape kinds are scaled to about 0.037 mu by that measure, like the
+others (they were 0.015 and 0.014 mu with the constants 0.03 and 0.08):
 
 * ``none``: no effect;
 * ``section_column``: traffic polishing, ``x (1 - 0.015 (cum_traffic_msa - 10))``, cum_traffic_msa a section-level
@@ -35,10 +40,12 @@ sections; station_ft -0.03 % per ft):
 * ``temperature``: WLF shift of the slip speed, ``mu(v a_T)``, ``log10 a_T = -8.86 (T - 20) / (101.6 + T - 20)``
   (t_ref 20 deg C, C1 8.86, C2 101.6 K), T = section U(18, 22) + site N(0, 0.7) deg C (in every kind; an effect
   only here). Near 20 deg C these constants shift the speed by 0.087 decades per K, so a few K are a large effect;
-* ``texture_speed``: hysteresis growing with speed and the macro rms slope, ``+ 0.03 z (v - 20) / 50``, ``z`` the
-  site's ``macro_Sdq`` standardised over the campaign (centred: the campaign-mean hysteresis is the base law's);
-* ``categorical_speed``: the ``limestone`` sections of ``aggregate`` (3 of 12) polish: ``- 0.08 clip((60 - v) / 40,
-  0, 1)`` (-0.08 at 20 km/h, none from 60 km/h);
+* ``texture_speed``: hysteresis growing with speed and the macro rms slope, ``+ 0.075 z (v - 20) / 50``, ``z`` the
+  site's ``macro_Sdq`` standardised over the campaign (centred: the campaign-mean hysteresis is the base law's;
+  sd of the site means 0.075 x 0.5 = 0.0375 mu);
+* ``categorical_speed``: the ``limestone`` sections of ``aggregate`` (3 of 12) polish: ``- 0.21 clip((60 - v) / 40,
+  0, 1)`` (-0.21 at 20 km/h, none from 60 km/h; mean over the 5 km/h grid 20-70 km/h 0.21 x 4.5 / 11, on 3 of 12
+  sections: sd of the site means 0.037 mu);
 * ``texture_measure``: the low-speed level is driven by the microtexture the slider touches,
   ``micro_contact = sqrt(mean(micro^2 1[raw >= q99.5(raw) - 0.5 mm]))`` (the micro band's energy on the aggregate
   tops within 0.5 mm of the highest ones), not by the whole-scan micro Sq; the table holds micro_Sq, not
@@ -68,9 +75,13 @@ KINDS = (
     "categorical_speed",
     "texture_measure",
 )
-SOURCES = ("default", "chips", "spectral", "chips-nosection", "spectral-nosection")
-#: ``<generator>-nosection``: the generator's texture and friction model without its random section factors on the
-#: level and on Sp (site factors kept): a null without unexplained section structure
+SOURCES = ("default", "chips", "spectral", "chips+sectionlatent", "spectral+sectionlatent")
+#: Suffix of a robustness source: the generator's own random section factors on the friction level and on Sp
+#: (log-normal, sd ``section_level_sd`` / ``section_sp_sd`` of :data:`skidsim.generators.campaign.COMMON`) are
+#: kept. They are a hidden section-level effect that no column and no texture measure carries, so on these sources
+#: a second hidden effect sits beside the kind's, and on ``none`` the right answer is ``section (unexplained)``.
+#: The plain ``chips`` / ``spectral`` sources have no section factors (one hidden effect per campaign).
+SECTION_LATENT = "+sectionlatent"
 #: The hidden variable of each kind (None: the texture model / a texture measure the table does not hold).
 HIDDEN = {
     "none": None,
@@ -92,9 +103,14 @@ POLISH_PER_MSA = 0.015
 STATION_PER_FT = 0.0003
 WLF = {"t_ref_c": 20.0, "c1": 8.86, "c2_k": 101.6}
 TEMP_SECTION_C, TEMP_SITE_SD_K = (18.0, 22.0), 0.7
-HYST_MU = 0.03
-POLISHED, POLISH_LOW_SPEED_MU = "limestone", 0.08
+HYST_MU = 0.075
+POLISHED, POLISH_LOW_SPEED_MU = "limestone", 0.21
 CONTACT_DEPTH_MM = 0.5
+
+
+def generator_of(source: str) -> str:
+    """The texture generator of a source (``default``, ``chips``, ``spectral``)."""
+    return source.removesuffix(SECTION_LATENT)
 
 
 def _rng(seed: int, *keys) -> np.random.Generator:
@@ -277,10 +293,10 @@ def _base_law(source: str, tex: pd.DataFrame, rng: np.random.Generator, micro_dr
             return mu_k[i] + (mu_s[i] - mu_k[i]) * np.exp(-alpha[i] * np.asarray(v, float) / 3.6)
 
         return mu
-    gen, _, variant = source.partition("-")
+    gen = generator_of(source)
     cfg = gc.generator_config(gen)
     f = cfg["friction"]
-    if variant == "nosection":
+    if not source.endswith(SECTION_LATENT):  # one hidden effect per campaign: no random section factors
         f = {**f, "section_level_sd": 0.0, "section_sp_sd": 0.0}
     secs = list(dict.fromkeys(tex["section"]))
     sec_of = np.array([secs.index(s) for s in tex["section"]])
@@ -324,7 +340,7 @@ def generate(
     if source not in SOURCES:
         raise ValueError(f"source: expected one of {SOURCES}, got {source!r}")
     if texture is None:
-        gen = source.partition("-")[0]
+        gen = generator_of(source)
         texture = default_texture(seed) if gen == "default" else generator_texture(gen, seed % N_DESIGNS, cache_dir)
     tex = texture.reset_index(drop=True)
     n = len(tex)

@@ -26,7 +26,7 @@ def _noise_free(source, kind, seed=3, texture=None):
     return sites, wide, tex, truth
 
 
-@pytest.mark.parametrize("source", ["default", "chips", "chips-nosection"])
+@pytest.mark.parametrize("source", ["default", "chips", "chips+sectionlatent"])
 def test_effect_kinds_change_friction_as_specified(source, chips_texture):
     texture = None if source == "default" else chips_texture
     sites, none, tex, t0 = _noise_free(source, "none", texture=texture)
@@ -52,7 +52,8 @@ def test_effect_kinds_change_friction_as_specified(source, chips_texture):
             pol = (sites["aggregate"] == rc.POLISHED).to_numpy()
             assert pol.sum() == 3 * rc.SITES_PER_SECTION
             d = mu.to_numpy() - none.to_numpy()
-            assert np.allclose(d[~pol], 0) and np.allclose(d[pol], -0.08 * np.clip((60 - v) / 40, 0, 1))
+            ramp = np.clip((60 - v) / 40, 0, 1)
+            assert np.allclose(d[~pol], 0) and np.allclose(d[pol], -rc.POLISH_LOW_SPEED_MU * ramp)
         elif kind == "temperature":
             d = (mu.to_numpy() - none.to_numpy()).mean(axis=1)
             warm = sites["temperature_c"].to_numpy() - rc.WLF["t_ref_c"]
@@ -121,3 +122,37 @@ def test_generator_hidden_texture_effects():
     # campaigns without these effects record no extra measure (their bytes are unchanged)
     cfg = gc.generator_config("spectral", {"n_sites": 1, "shape": [100, 150], "spacing_mm": 0.2, "seed": 1})
     assert set(gc.generate_site(gc.design_campaign(cfg).iloc[0], cfg).truth["hidden"]) == {"effect", "kappa", "sp_kmh"}
+
+
+@pytest.mark.parametrize("source", ["default", "chips"])
+def test_speed_shape_kinds_are_sized_like_the_default_campaigns_effect(source, chips_texture):
+    """texture_speed and categorical_speed hide an effect of about the default campaign's size (sd over sites of
+    the effect's mean over 20-70 km/h 0.035-0.04 mu, like its temperature effect, 0.038 mu)."""
+    texture = None if source == "default" else chips_texture
+    for kind in ("texture_speed", "categorical_speed"):
+        truth = _noise_free(source, kind, texture=texture)[3]
+        assert 0.033 <= truth["effect_sd_mu"] <= 0.042, (kind, truth)
+
+
+def test_plain_generator_sources_hide_no_section_factor(chips_texture):
+    """One hidden effect per campaign: on the plain chips source the friction level at 20 km/h over the
+    generator's own level law of the site's micro Sq (its site factor) varies within sections about as much as
+    between them (share of the section means in its variance about 1/3 with 3 sites per section); the
+    +sectionlatent source keeps the generator's random section factors (the share rises towards 1)."""
+    from skidsim.generators import campaign as gc
+    from skidsim.generators import friction_models as fm
+
+    assert rc.generator_of("chips+sectionlatent") == "chips" and "spectral+sectionlatent" in rc.SOURCES
+    sq_ref_mm = gc.generator_config("chips")["friction"]["sq_ref_mm"]
+    law = np.array([fm.level_from_micro(x, sq_ref_mm) for x in chips_texture["hidden_micro_sq_mm"]])
+
+    def section_share_of_level(source):
+        sites, mu, _, _ = _noise_free(source, "none", texture=chips_texture)
+        assert mu.columns[0] == 20.0
+        r = np.log(mu.iloc[:, 0].to_numpy() / law)
+        sec = sites["section"].to_numpy()
+        means = np.array([r[sec == s].mean() for s in sec])
+        return float(means.var() / r.var())
+
+    plain, latent = section_share_of_level("chips"), section_share_of_level("chips+sectionlatent")
+    assert plain < 0.5 and latent > plain + 0.3, (plain, latent)

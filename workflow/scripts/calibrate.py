@@ -50,5 +50,16 @@ log.info(
     result.converged,
     result.message,
 )
+if result.settings.get("speculative_fe_runs"):
+    st = result.settings
+    log.info(
+        "%s %s look-ahead: %d announced FE runs not used (%d steps, %d run now, %.2f s), not counted above",
+        site,
+        method,
+        st["speculative_fe_runs"],
+        st["speculative_fe_steps"],
+        st["speculative_fe_steps_run"],
+        st["speculative_fe_wall_s"],
+    )
 write_parquet(snakemake.output.history, result.history.assign(site=site, method=method))
 result.to_json(snakemake.output.result)

@@ -9,6 +9,8 @@ every method) are announced with :func:`prefetch` ``(simulate, [(speed_kmh, law)
 module then run the cache misses together (:func:`skidsim.solver.simulate_batch`, the same SN as single runs bit for
 bit), store them, and answer the following ``simulate(speed_kmh, law)`` calls with those outcomes as if each had
 run then (``cached`` False, its steps, its share of the batch's wall time). Cache keys are those of single runs.
+Announced runs that will not be asked for (a look-ahead's unused points) are taken back with :func:`withdraw`,
+which returns what they cost (the cache keeps them: a rerun finds them as hits).
 
 Cost accounting: ``n_steps`` / ``wall_s`` of an :class:`FEOutcome` are what this call paid (0 for a cache hit);
 ``cost_steps`` / ``cost_wall_s`` are the cost of the FE run behind the value, cached or not (the method's cost).
@@ -74,6 +76,16 @@ def prefetch(simulate: Simulator, requests) -> None:
         fn([(float(v), law) for v, law in requests])
 
 
+def withdraw(simulate: Simulator, requests) -> list[FEOutcome]:
+    """Withdraw announced runs ``requests`` (``(speed_kmh, law)`` pairs) that will not be asked for (a look-ahead's
+    points the caller did not need). Returns the outcomes behind those that were run by a :func:`prefetch` and not
+    yet answered (``cached`` False, the steps run) or that the cache holds (``cached``, 0 steps now, the run's
+    cost), in the order of ``requests``; a request that was never run, or a simulator that does not batch, gives
+    nothing. The cache keeps the runs it stored; a withdrawn run is no longer answered as a new evaluation."""
+    fn = getattr(simulate, "withdraw", None)
+    return [] if fn is None else fn([(float(v), law) for v, law in requests])
+
+
 def fe_simulator(pavement, config=None, **simulate_kwargs) -> Simulator:
     """The simulator callback around :func:`skidsim.solver.simulate` for one pavement and solver config.
 
@@ -105,9 +117,13 @@ def fe_simulator(pavement, config=None, **simulate_kwargs) -> Simulator:
         if len(todo) > 1:
             pending.update(zip(todo, run_batch(todo)))
 
+    def withdraw_runs(requests: list[Request]) -> list[FEOutcome]:
+        return [out for out in (pending.pop((float(v), law), None) for v, law in requests) if out is not None]
+
     if not {"trace_path", "vtu_dir"} & set(simulate_kwargs):
         simulate.run_batch = run_batch  # type: ignore[attr-defined]
         simulate.prefetch = prefetch_runs  # type: ignore[attr-defined]
+        simulate.withdraw = withdraw_runs  # type: ignore[attr-defined]
     return simulate
 
 
@@ -326,6 +342,15 @@ class FECache:
             self.n_new += 1
             return out
 
+        def withdraw_runs(requests: list[Request]) -> list[FEOutcome]:
+            outs = []
+            for v, law in requests:
+                out = self._fresh.pop(self.key(v, law), None) or self.lookup(v, law)
+                if out is not None:
+                    outs.append(out)
+            return outs
+
         cached_simulate.cache = self  # type: ignore[attr-defined]
         cached_simulate.prefetch = prefetch_runs  # type: ignore[attr-defined]
+        cached_simulate.withdraw = withdraw_runs  # type: ignore[attr-defined]
         return cached_simulate

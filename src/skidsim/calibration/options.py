@@ -75,6 +75,13 @@ class StudyOptions:
         (:class:`CalibrationError`).
     window_kmh: None (linear interpolation of a trace) or the half-width, km/h, of the local regression line
         (:func:`measured_at`).
+    look_ahead: FE runs of later iterations announced with each one, for a simulator that batches them
+        (:func:`~skidsim.calibration.cache.prefetch`); the evaluations, decisions and result are those of the
+        sequential bisection bit for bit, only the CPU time and the unused runs (``speculative_fe_*`` in the
+        result's settings) differ. ``"none"``: one run per iteration; ``"quarters"``: the midpoint with both
+        quarter points (one is the next midpoint); ``"predicted"``: the midpoints of the next
+        ``look_ahead_depth`` iterations along the path predicted by ``SN = g mu(v)`` (docs/calibration.md).
+    look_ahead_depth: iterations announced at once by ``look_ahead="predicted"`` (1: none).
     """
 
     start: tuple[float, float, float] = STUDY_START
@@ -83,6 +90,8 @@ class StudyOptions:
     max_iter: int = 8
     on_max_iter: str = "flag"
     window_kmh: float | None = None
+    look_ahead: str = "predicted"
+    look_ahead_depth: int = 8
 
     def __post_init__(self):
         where = "calibration.study"
@@ -100,6 +109,13 @@ class StudyOptions:
             raise ConfigError(f"{where}.on_max_iter: expected 'flag' or 'raise', got {self.on_max_iter!r}")
         if self.window_kmh is not None:
             _positive(f"{where}.window_kmh", self.window_kmh)
+        if self.look_ahead not in ("none", "quarters", "predicted"):
+            raise ConfigError(
+                f"{where}.look_ahead: expected 'none', 'quarters' or 'predicted', got {self.look_ahead!r}"
+            )
+        d = self.look_ahead_depth
+        if isinstance(d, bool) or not isinstance(d, int) or d < 1:
+            raise ConfigError(f"{where}.look_ahead_depth: expected an integer >= 1, got {d!r}")
 
     @classmethod
     def from_config(cls, section: Mapping | None) -> StudyOptions:

@@ -15,6 +15,12 @@ search stops when ``|SN_sim - SN_measured| / SN_measured < tol`` (10 %). Convent
 * **Max iterations.** ``max_iter`` FE evaluations per parameter. When a search exhausts it, ``on_max_iter="flag"``
   keeps the evaluated value with the smallest ``|error|``, records a message naming the parameter, speed, interval
   and last error, marks the result not converged and goes on; ``"raise"`` raises :class:`CalibrationError`.
+* **Look-ahead** (``look_ahead``, default ``"predicted"``). The FE runs of later iterations are announced with
+  this one's (:func:`~skidsim.calibration.cache.prefetch`: one batch of runs at the same speed for a simulator
+  that batches); the evaluations, decisions, history, law and messages are those of the sequential bisection
+  bit for bit. Announced runs the bisection did not use are withdrawn and counted in the result's ``settings``
+  (``speculative_fe_runs``, ``speculative_fe_steps``, ``speculative_fe_steps_run``, ``speculative_fe_wall_s``
+  in s), not in its history, ``n_fe_runs`` or ``n_steps`` (the cost of the study's method).
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from skidsim.calibration.cache import Simulator
+from skidsim.calibration.cache import FEOutcome, Simulator, prefetch, withdraw
 from skidsim.calibration.measured import measured_dict
 from skidsim.calibration.options import PARAMS, STUDY_ORDER, StudyOptions
 from skidsim.calibration.result import CalibrationError, CalibrationResult, Evaluator
@@ -52,9 +58,10 @@ def calibrate_study(
     meas = measured_dict(measured, [float(v) for _, v in order], opt.window_kmh, source)
     current = dict(zip(PARAMS, (float(x) for x in opt.start)))
     ev = Evaluator(simulate, "study")
+    spec = _Speculative()
     messages = []
     for name, speed in order:
-        msg = _search(ev, current, name, float(speed), meas[float(speed)], opt)
+        msg = _search(ev, current, name, float(speed), meas[float(speed)], opt, spec)
         if msg is not None:
             messages.append(msg)
     converged = not messages
@@ -67,29 +74,39 @@ def calibrate_study(
         message=msg,
         measured_kmh=meas,
         overhead_s=ev.overhead_s(t_start),
-        settings=_settings(opt, order),
+        settings=_settings(opt, order) | spec.settings(),
     )
 
 
-def _search(ev: Evaluator, current: dict, name: str, speed: float, target: float, opt: StudyOptions) -> str | None:
+def _search(
+    ev: Evaluator, current: dict, name: str, speed: float, target: float, opt: StudyOptions, spec: _Speculative
+) -> str | None:
     """Bisect ``name`` at ``speed`` (km/h) toward the measured ``target``; sets ``current[name]``. Returns None when
-    the tolerance was met, else the message naming the exhausted search (or raises, ``on_max_iter="raise"``)."""
+    the tolerance was met, else the message naming the exhausted search (or raises, ``on_max_iter="raise"``).
+
+    With ``opt.look_ahead`` the midpoints of later iterations are announced to the simulator together with this
+    one's (:func:`_look_ahead`); the sequence evaluated is the same, the announced points not evaluated are
+    withdrawn at the end and counted in ``spec``."""
     lo, hi = (float(x) for x in opt.intervals[name])
     tried: list[tuple[float, float]] = []  # (value, rel_err)
-    for it in range(1, int(opt.max_iter) + 1):
-        mid = 0.5 * (lo + hi)
-        trial = dict(current, **{name: mid})
-        out = ev(speed, ExponentialDecay(**trial), stage=name, iteration=it, sn_measured=target, lo=lo, hi=hi)
-        err = out.sn / target - 1.0
-        tried.append((mid, err))
-        if abs(err) < opt.tol:
-            current[name] = mid
-            return None
-        increasing = True if name != "alpha" else (trial["mu_s"] < trial["mu_k"])
-        if (err > 0) == increasing:  # SN too high and growing with the parameter, or too low and falling
-            hi = mid
-        else:
-            lo = mid
+    ahead: set[tuple[float, ExponentialDecay]] = set()  # announced, not yet evaluated
+    try:
+        for it in range(1, int(opt.max_iter) + 1):
+            mid = 0.5 * (lo + hi)
+            trial = dict(current, **{name: mid})
+            law = ExponentialDecay(**trial)
+            if opt.look_ahead != "none" and (speed, law) not in ahead:
+                ahead |= _look_ahead(ev, current, name, speed, target, opt, lo, hi, it)
+            ahead.discard((speed, law))
+            out = ev(speed, law, stage=name, iteration=it, sn_measured=target, lo=lo, hi=hi)
+            err = out.sn / target - 1.0
+            tried.append((mid, err))
+            if abs(err) < opt.tol:
+                current[name] = mid
+                return None
+            lo, hi = _next_interval(name, trial, err, lo, hi)
+    finally:
+        spec.withdraw(ev, ahead)
     best_val, best_err = min(tried, key=lambda t: abs(t[1]))
     msg = (
         f"study bisection: {name} at {speed:g} km/h did not reach |SN_sim - SN_measured|/SN_measured "
@@ -103,6 +120,88 @@ def _search(ev: Evaluator, current: dict, name: str, speed: float, target: float
     return msg
 
 
+def _next_interval(name: str, trial: dict, err: float, lo: float, hi: float) -> tuple[float, float]:
+    """The half of [lo, hi] the bisection keeps after the relative error ``err`` at its midpoint ``trial[name]``."""
+    mid = trial[name]
+    increasing = True if name != "alpha" else (trial["mu_s"] < trial["mu_k"])
+    if (err > 0) == increasing:  # SN too high and growing with the parameter, or too low and falling
+        return lo, mid
+    return mid, hi
+
+
+def _look_ahead(
+    ev: Evaluator,
+    current: dict,
+    name: str,
+    speed: float,
+    target: float,
+    opt: StudyOptions,
+    lo: float,
+    hi: float,
+    it: int,
+) -> set[tuple[float, ExponentialDecay]]:
+    """Announce (:func:`prefetch`) the midpoint of [lo, hi] and midpoints of later iterations (at most
+    ``max_iter``), so that a simulator that batches runs them as one batch of the same speed. Returns the
+    requests announced.
+
+    ``"quarters"``: the midpoint and both quarter points (one of them is the next iteration's midpoint unless
+    the search stops). ``"predicted"``: the midpoints along the path the bisection takes when SN follows
+    ``SN = g mu(v)`` with the factor ``g = SN / mu`` of the latest evaluation (1 before any), up to
+    ``look_ahead_depth`` iterations, ending at the first point predicted within the tolerance."""
+    points: list[float] = []
+    if opt.look_ahead == "quarters":
+        mid = 0.5 * (lo + hi)
+        points = [mid] + ([0.5 * (lo + mid), 0.5 * (mid + hi)] if it < opt.max_iter else [])
+    else:
+        g = _latest_sn_factor(ev)
+        a, b = lo, hi
+        for _ in range(min(int(opt.look_ahead_depth), int(opt.max_iter) - it + 1)):
+            x = 0.5 * (a + b)
+            points.append(x)
+            trial = dict(current, **{name: x})
+            err = g * float(ExponentialDecay(**trial).mu_kmh(speed)) / target - 1.0
+            if abs(err) < opt.tol:
+                break
+            a, b = _next_interval(name, trial, err, a, b)
+    requests = [(speed, ExponentialDecay(**dict(current, **{name: x}))) for x in points]
+    if len(requests) > 1:
+        t0 = time.perf_counter()
+        prefetch(ev.simulate, requests)
+        ev.sim_wall += time.perf_counter() - t0  # the batch's time is simulator time
+    return set(requests)
+
+
+def _latest_sn_factor(ev: Evaluator) -> float:
+    """SN / mu(v) of the latest evaluation (1 before the first, or where mu(v) is 0)."""
+    if not ev.rows:
+        return 1.0
+    r = ev.rows[-1]
+    mu = float(ExponentialDecay(r["mu_s"], r["mu_k"], r["alpha"]).mu_kmh(r["speed_kmh"]))
+    return float(r["sn_sim"]) / mu if mu > 0 else 1.0
+
+
+class _Speculative:
+    """The FE runs announced by the look-ahead that the bisection did not evaluate (withdrawn from the simulator,
+    :func:`withdraw`): their count, the steps and wall time (s) of the runs behind them, and the steps run now."""
+
+    def __init__(self):
+        self.outcomes: list[FEOutcome] = []
+
+    def withdraw(self, ev: Evaluator, requests) -> None:
+        if requests:
+            self.outcomes += withdraw(ev.simulate, sorted(requests, key=lambda r: (r[1].mu_s, r[1].mu_k, r[1].alpha)))
+
+    def settings(self) -> dict:
+        """``speculative_fe_runs``, ``speculative_fe_steps`` (cost of the runs, cached or not),
+        ``speculative_fe_steps_run`` (run in this call), ``speculative_fe_wall_s`` (s, share of the batches)."""
+        return {
+            "speculative_fe_runs": len(self.outcomes),
+            "speculative_fe_steps": int(sum(o.cost_steps for o in self.outcomes)),
+            "speculative_fe_steps_run": int(sum(o.n_steps for o in self.outcomes)),
+            "speculative_fe_wall_s": float(sum(o.cost_wall_s for o in self.outcomes)),
+        }
+
+
 def _settings(opt: StudyOptions, order: Sequence[tuple[str, float]]) -> dict:
     """The settings recorded with the result (JSON-ready)."""
     return {
@@ -113,4 +212,6 @@ def _settings(opt: StudyOptions, order: Sequence[tuple[str, float]]) -> dict:
         "order": [[n, float(v)] for n, v in order],
         "on_max_iter": opt.on_max_iter,
         "window_kmh": opt.window_kmh,
+        "look_ahead": opt.look_ahead,
+        "look_ahead_depth": int(opt.look_ahead_depth),
     }

@@ -30,7 +30,9 @@ class Cause:
     ``z``: (T - mean T_perm) / sd T_perm (standardised statistic); ``group``: numeric candidates with
     |Pearson r| >= corr_group across sites (itself included), or for texture parameters the members of its
     texture cluster; ``significant``: p_adjusted <= fdr and cv_gain > 0. ``family``: "primary" (functional form
-    and the physical hypotheses: temperature, MPD x speed) or "secondary" (every other candidate); ``unit``: the
+    and the physical hypotheses: temperature, MPD x speed), "secondary" (every other candidate) or "child" (the
+    texture model x speed between sites, asked only under a significant section x speed effect:
+    :func:`skidsim.criticism.screening.texture_speed_tests`); ``unit``: the
     tested unit (the variable itself, or ``cluster:<representative>`` for a texture cluster tested by its
     max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster);
     ``texture_pcs``: for a between-site sites.csv covariate that varies within sections, the number of texture
@@ -198,20 +200,20 @@ def order_by_refinement(causes: list[Cause], cov: pd.DataFrame) -> list[Cause]:
 def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
     """The physical hypothesis on the MPD column ranks above the texture clusters that hold MPD (e.g. drainage
     makes the texture model misfit the level of shallow-texture sites: the macrotexture height cluster is
-    significant between sites; MPD x speed names the mechanism). In place."""
+    significant between sites; MPD x speed names the mechanism), and above a texture-model candidate x speed built
+    on MPD (``texture_model[nonlinear in <MPD>]``, x_speed: its cubic nests the drainage hypothesis's linear
+    column, and the physical hypothesis is the more specific name). In place."""
     if mpd_col is None:
         return
     mp = [k for k, c in enumerate(causes) if c.significant and c.variable == mpd_col and c.kind == "x_speed"]
-    above = [
-        k
-        for k, c in enumerate(causes)
-        if c.significant
-        and mp
-        and k < mp[0]
-        and mpd_col in c.group
-        and c.unit is not None
-        and str(c.unit).startswith("cluster:")
-    ]
+
+    def holds_mpd(c: Cause) -> bool:
+        if c.source == "texture_model":
+            axes = (mpd_col, f"log({mpd_col})")
+            return c.kind == "x_speed" and c.variable in {f"texture_model[nonlinear in {a}]" for a in axes}
+        return mpd_col in c.group and c.unit is not None and str(c.unit).startswith("cluster:")
+
+    above = [k for k, c in enumerate(causes) if c.significant and mp and k < mp[0] and holds_mpd(c)]
     if mp and above:
         causes.insert(above[0], causes.pop(mp[0]))
 
@@ -250,6 +252,24 @@ def _explanation(c: Cause, S: Cause, texture: bool, share_min: float) -> bool:
     return c.kind == K and c.section_level and not c.section_id and _explains(c, K, share_min)
 
 
+def _column_explains(c: Cause, S: Cause, causes: list[Cause], share_min: float) -> float:
+    """The share of the section effect ``S`` that ``c``, a significant section-level column (not section identity)
+    of any level and kind, explains through its test at S's level: of S's kind, or of any kind when S is the
+    site means' effect (the same basis on the same site means). A column established at one level or kind (e.g.
+    the polished aggregate x speed within sites) is thereby the explanation of the section effect it carries at
+    another, even where its own test there has less power than section identity's. NaN when it does not explain
+    at least ``share_min``."""
+    if c is S or not c.significant or not c.section_level or c.section_id:
+        return float("nan")
+    shares = [
+        _share_of(x, S.kind)
+        for x in causes
+        if x.variable == c.variable and x.level == S.level and (x.kind == S.kind or S.kind == "main")
+    ]
+    shares = [v for v in shares if np.isfinite(v) and v >= share_min]
+    return max(shares) if shares else float("nan")
+
+
 def _pos(causes: list[Cause], c: Cause) -> int:
     """Index of ``c`` in ``causes`` by identity."""
     return next(k for k, x in enumerate(causes) if x is c)
@@ -273,8 +293,11 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
       kind when K is ``main`` and it explains that share of the site means' section effect) that explains at least
       ``share_min`` of it moves right above S (the one with the largest share): the texture model, or the texture
       measure, is the cause;
-    * if no explanation (such a texture cause, or a section-level column that explains at least ``share_min``)
-      ranks above S, S is labelled ``section (unexplained)``.
+    * else a significant section-level column that explains at least ``share_min`` of S through its test at L
+      (:func:`_column_explains`: of kind K, or of any kind when K is ``main``; the column itself may be significant
+      at another level or kind) moves right above S (the one with the largest share);
+    * if no explanation (such a texture cause, or such a section-level column) ranks above S, S is labelled
+      ``section (unexplained)``.
 
     Then a texture-model candidate that explains no significant section effect goes below every other significant
     cause (it is evidence about the texture model, not the first explanation of a site-level residual)."""
@@ -291,13 +314,18 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
         for c in weak:
             _move(causes, c, _pos(causes, S))  # right below S (S moved up by one)
         expl = [c for c in causes if _explanation(c, S, True, share_min)]
+        cols = {id(c): v for c in causes if np.isfinite(v := _column_explains(c, S, causes, share_min))}
         if expl:
             used.update(id(c) for c in expl)
             best = max(expl, key=lambda c: _share_of(c, K))
             if _pos(causes, best) > _pos(causes, S):
                 _move(causes, best, _pos(causes, S))
+        elif cols:
+            best = max((c for c in causes if id(c) in cols), key=lambda c: cols[id(c)])
+            if _pos(causes, best) > _pos(causes, S):
+                _move(causes, best, _pos(causes, S))
         k = _pos(causes, S)
-        if not any(_explanation(c, S, True, share_min) or _explanation(c, S, False, share_min) for c in causes[:k]):
+        if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
             causes[k] = replace(S, label=SECTION_UNEXPLAINED)
     tm = [c for c in causes if c.significant and c.source == "texture_model" and id(c) not in used]
     others = [c for c in causes if c.significant and c.source != "texture_model"]

@@ -363,15 +363,17 @@ def section_shares(ctx: LevelContext, tests: list[CandidateTest]) -> None:
             t.section_share_main = section_share(Q, ctx.Ys["main"], ctx.sec)
 
 
-def texture_model_tests(ctx: LevelContext, members: list[TextureMember]) -> list[CandidateTest]:
-    """The texture model as a candidate cause between sites (site means, ``main``): each richer texture model
-    (:func:`~skidsim.criticism.texture_candidate.texture_members`) tested against the residual by the nested
-    permutations of every covariate (exact: the members are built from the texture alone); ``cv_gain`` is the
-    leave-one-section-out gain of the residual model ``[1, member design]`` over the training mean. The members
-    form one testing unit (:func:`skidsim.criticism.fdr.testing_units`)."""
-    if ctx.data.level != "between-site" or not members or "main" not in ctx.Ys:
+def texture_model_tests(ctx: LevelContext, members: list[TextureMember], kind: str = "main") -> list[CandidateTest]:
+    """The texture model as a candidate cause between sites: each richer texture model
+    (:func:`~skidsim.criticism.texture_candidate.texture_members`) tested against the residual of ``kind`` (the
+    site means, ``main``; or the centred speed profiles, ``x_speed``, as every covariate x speed between sites:
+    a free profile per design column) by the nested permutations of every covariate (exact: the members are built
+    from the texture alone); ``cv_gain`` is the leave-one-section-out gain of the residual model
+    ``[1, member design]`` over the training mean. The members of one kind form one testing unit
+    (:func:`skidsim.criticism.fdr.testing_units`; ``x_speed``: :func:`texture_speed_tests`)."""
+    if ctx.data.level != "between-site" or not members or kind not in ctx.Ys:
         return []
-    Y = ctx.Ys["main"]
+    Y = ctx.Ys[kind]
     Qs = [member_basis(m) for m in members]
     Q = np.concatenate(Qs, axis=1)
     owner = np.concatenate([np.full(q.shape[1], k) for k, q in enumerate(Qs)])
@@ -383,27 +385,57 @@ def texture_model_tests(ctx: LevelContext, members: list[TextureMember]) -> list
     for k, m in enumerate(members):
         sse0, sse1 = cv_sse_design(Y, m.design, fold)
         share = section_share(Qs[k], Y, ctx.sec)
+        share_main = section_share(Qs[k], ctx.Ys["main"], ctx.sec) if "main" in ctx.Ys else float("nan")
         out.append(
             CandidateTest(
                 m.variable,
                 ctx.data.level,
-                "main",
+                kind,
                 float(T[k]),
                 Tp[:, k],
                 sse0,
                 sse1,
                 ctx.n,
-                1,
+                Y.shape[1],
                 0,
                 "texture_model",
                 "texture_model",
                 False,
                 section_share=share,
-                section_share_main=share,
-                words=m.words,
+                section_share_main=share_main,
+                words=m.words if kind == "main" else m.speed_words,
             )
         )
     return out
+
+
+def texture_speed_tests(
+    ctx: LevelContext, members: list[TextureMember], causes: list[Cause], cands: CandidateSet, options, P: int
+) -> list[Cause]:
+    """The texture model as the explanation of a section x speed effect between sites (docs/model-criticism.md,
+    section 2, "The texture model as a candidate cause"): asked only where section identity x speed between
+    sites is significant in ``causes`` (the screening's causes), as a child family of that section effect
+    (Yekutieli 2008; the gatekeeper of :func:`skidsim.criticism.fdr.adjust` for the section-level columns): the
+    members' x_speed tests (:func:`texture_model_tests`) are one unit tested by their max-statistic, each
+    member's p_adjusted ``max(unit p, its single-step maxT p, the section effect's p_adjusted)``. Their permutations are
+    the level's nested permutations (no new draws: every other test is unchanged). Family ``child``."""
+    from .fdr import Adjustment, Unit
+    from .permutations import permutation_p
+
+    parent = [c for c in causes if c.section_id and c.significant and c.level == "between-site" and c.kind == "x_speed"]
+    tests = texture_model_tests(ctx, members, "x_speed") if parent else []
+    if not tests:
+        return []
+    p = np.array([permutation_p(t.T, t.Tp) for t in tests])
+    Tmax = np.max(np.stack([t.Tp for t in tests]), axis=0)
+    Tobs = np.array([t.T for t in tests])
+    unit_p = permutation_p(Tobs.max(), Tmax)
+    gate = min(c.p_adjusted for c in parent)
+    padj = np.array([max(unit_p, permutation_p(t, Tmax), gate) for t in Tobs])
+    key = ("texture_model_child", "between-site", "x_speed")
+    unit = Unit("child", tests[int(np.argmax(Tobs))].variable, list(range(len(tests))))
+    adjustment = Adjustment(p, padj, [key] * len(tests), {key: unit}, {key: unit_p})
+    return make_causes(tests, adjustment, cands, options, P)
 
 
 def _members(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None, lead) -> list[TextureMember]:
@@ -456,15 +488,21 @@ def screen_candidates(
     ff_delta = _between_shape(residuals, data, options.speed_bin_kmh)
     P = permutation_count(family_sizes(data, cands), options)
     rng = np.random.default_rng(options.seed)
-    tests = []
+    tests, between = [], None
     for d in data.values():
         ctx = level_context(d, cands, P, rng)
         cov_tests = covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
         section_shares(ctx, cov_tests)
         tests += cov_tests
-        tests += texture_model_tests(ctx, _members(ctx, cands, texture_pc_scores, texture_lead))
+        members = _members(ctx, cands, texture_pc_scores, texture_lead)
+        tests += texture_model_tests(ctx, members)
+        if ctx.data.level == "between-site":
+            between = (ctx, members)
         if ctx.amp_col is not None:
             tests.append(mpd_amplitude_test(ctx))
         tests.append(functional_form_test(ctx, ff_delta, P, rng))
     adjustment = adjust(tests, cands, options)
-    return rank_causes(make_causes(tests, adjustment, cands, options, P), cands.covariates, cands.mpd)
+    causes = make_causes(tests, adjustment, cands, options, P)
+    if between is not None:
+        causes += texture_speed_tests(*between, causes, cands, options, P)
+    return rank_causes(causes, cands.covariates, cands.mpd)

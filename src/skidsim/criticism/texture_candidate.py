@@ -11,13 +11,22 @@ texture models (*members*), each a 3-column design built from the texture alone,
 * ``nonlinear in <axis>``: ``[z, z^2, z^3]`` of one texture axis ``z`` (standardised): the prediction model's own
   texture columns (as the regression used them, e.g. ``log(profile_MPD)``) and the MPD column (mm); a cubic in
   MPD also spans the IFI speed constant ``1/Sp``, ``Sp = 14.2 + 89.7 MPD`` km/h, over the campaign's range;
+* ``curved in <a> and <b>``: ``[z_a z_b, z_a^2, z_b^2]`` of the first two kept axes (in practice the prediction
+  model's two texture terms, e.g. ``log(profile_MPD)`` and ``log(micro_Sq)``): the second-order terms of a
+  quadratic surface whose linear terms the texture model holds (a level set by microtexture times a speed
+  dependence set by MPD, as in the IFI and Rado forms, is a product of the two);
+* ``contact-zone microtexture``: ``[z(log(raw_Sp / raw_Sq)), z(log(micro_Sp / micro_Sq)),
+  z(log micro_Sq) z(log(raw_Sp / raw_Sq))]`` where the table holds these columns: the microtexture where the slider
+  touches (on the aggregate tops) rather than averaged over the scan (:func:`_contact_design`);
 * ``texture PCs 1-3``: the three leading principal components of the texture table beyond the prediction
   model's columns (texture measures the model leaves out),
 
 is tested against the between-site residual (site means, ``main``) by the same nested permutations as every
-covariate. The members are one testing unit (primary family) tested by their max-statistic (all members have
-3 columns, so their sums of squares share one scale): an exact permutation p-value of "no richer texture model
-explains the residual", and the member with the largest statistic says which measure or which form.
+covariate, and, where section identity x speed is significant between sites, against the residual's speed profiles
+(``x_speed``: :func:`skidsim.criticism.screening.texture_speed_tests`, a child family of that section effect).
+The members of one kind are one testing unit (``main``: primary family) tested by their max-statistic (all
+members have 3 columns, so their sums of squares share one scale): an exact permutation p-value of "no richer
+texture model explains the residual", and the member with the largest statistic says which measure or which form.
 
 Friction mu (dimensionless), MPD mm, speeds km/h.
 """
@@ -50,6 +59,12 @@ class TextureMember:
     def variable(self) -> str:
         return f"{TEXTURE_MODEL}[{self.name}]"
 
+    @property
+    def speed_words(self) -> str:
+        """The words of the member tested against the speed shape of the residual (``x_speed``)."""
+        w = self.words.removeprefix("friction is ")
+        return f"the speed shape of friction is {w}" if w != self.words else f"the speed shape of friction follows {w}"
+
 
 def is_texture_model(variable: str) -> bool:
     """Whether a cause's variable is a texture-model candidate."""
@@ -66,6 +81,48 @@ def _cubic(z: np.ndarray) -> np.ndarray:
     """``[z, z^2, z^3]`` of a standardised axis, each column standardised."""
     cols = [_std(z**p) for p in (1, 2, 3)]
     return np.column_stack([c if c is not None else np.zeros_like(z) for c in cols])
+
+
+def _surface(za: np.ndarray, zb: np.ndarray) -> np.ndarray:
+    """``[za zb, za^2, zb^2]`` of two standardised axes (the second-order terms of a quadratic response surface
+    whose linear terms the texture model holds), each column standardised."""
+    cols = [_std(c) for c in (za * zb, za**2, zb**2)]
+    return np.column_stack([c if c is not None else np.zeros_like(za) for c in cols])
+
+
+#: What the contact-zone member means, in words.
+CONTACT_WORDS = (
+    "friction follows the microtexture where the slider touches: how far the highest tops stand above the surface "
+    "(raw Sp / Sq), how peaked the micro band is (micro Sp / Sq) and the micro Sq on those tops (micro Sq x raw "
+    "Sp / Sq)"
+)
+
+
+def _column(C: pd.DataFrame, band: str, param: str) -> np.ndarray | None:
+    """The positive values of the texture column ``<band>_<param>`` (or ``..._mm``; mm) of the sites, or None."""
+    for name in (f"{band}_{param}", f"{band}_{param}_mm"):
+        if name in C.columns:
+            x = pd.to_numeric(C[name], errors="coerce").to_numpy(float)
+            return x if np.isfinite(x).all() and (x > 0).all() else None
+    return None
+
+
+def _contact_design(C: pd.DataFrame) -> np.ndarray | None:
+    """``[z(log(raw_Sp / raw_Sq)), z(log(micro_Sp / micro_Sq)), z(log micro_Sq) z(log(raw_Sp / raw_Sq))]``: the
+    contact zone of a slider on the texture's tops, from the table's own columns (heights in mm): the peak-to-rms
+    ratio of the whole scan (the higher the tops stand out, the smaller the share of the surface they make up),
+    the same ratio of the micro band, and the micro Sq weighted by the first (microtexture on the tops rather than
+    averaged over binder and aggregate). None when a column is missing or not positive."""
+    cols = {(b, q): _column(C, b, q) for b in ("raw", "micro") for q in ("Sp", "Sq")}
+    if any(v is None for v in cols.values()):
+        return None
+    peak = _std(np.log(cols["raw", "Sp"] / cols["raw", "Sq"]))
+    micro_peak = _std(np.log(cols["micro", "Sp"] / cols["micro", "Sq"]))
+    micro = _std(np.log(cols["micro", "Sq"]))
+    on_tops = None if peak is None or micro is None else _std(micro * peak)
+    if peak is None or micro_peak is None or on_tops is None:
+        return None
+    return np.column_stack([peak, micro_peak, on_tops])
 
 
 def texture_members(
@@ -89,10 +146,22 @@ def texture_members(
             axes.append((mpd, z))
     members, kept = [], []
     for name, z in axes:
-        if any(abs(float(np.corrcoef(z, k)[0, 1])) >= 0.95 for k in kept):
+        if any(abs(float(np.corrcoef(z, k[1])[0, 1])) >= 0.95 for k in kept):
             continue
-        kept.append(z)
+        kept.append((name, z))
         members.append(TextureMember(f"nonlinear in {name}", f"friction is a nonlinear function of {name}", _cubic(z)))
+    if len(kept) >= 2:
+        (a, za), (b, zb) = kept[:2]
+        members.append(
+            TextureMember(
+                f"curved in {a} and {b}",
+                f"friction is a curved function of {a} and {b} together (their squares and their product)",
+                _surface(za, zb),
+            )
+        )
+    contact = _contact_design(C)
+    if contact is not None:
+        members.append(TextureMember("contact-zone microtexture", CONTACT_WORDS, contact))
     pcs = np.asarray(scores, float)[:, n_lead:] if scores is not None else np.zeros((len(C), 0))
     if pcs.shape[1] >= MEMBER_DF:
         D = np.column_stack([_std(pcs[:, j]) for j in range(MEMBER_DF)])

@@ -31,6 +31,7 @@ from scipy import ndimage
 _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 _EIGHT = np.ones((3, 3), dtype=bool)
 _BLOCK_POINTS = 32 * 2448  # points per block of rows in catchment_basins (a few arrays of it fit in cache)
+_WHOLE_ROUNDS_ABOVE = 16  # catchment_basins: whole-array doubling rounds while > 1/16 of the points move
 
 
 def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
@@ -61,11 +62,18 @@ def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
     ptr = np.arange(rows * cols, dtype=np.int32)
     ptr += delta[code.ravel()]  # code -1 indexes the trailing 0
     del code
-    # pointer doubling: every point ends at the sink of its descent path (a sink points to itself); three
-    # rounds over every point resolve the paths up to 8 steps, then only the points not yet at a sink jump
-    for _ in range(3):
-        ptr = ptr[ptr]
-    active = np.flatnonzero(ptr[ptr] != ptr)
+    # pointer doubling: every point ends at the sink of its descent path (a sink points to itself; any order of
+    # jumps ends there). Whole-array rounds while more than 1/16 of the points still move (a gather of int32 in
+    # order is cheaper than the indexed updates), then only the points not yet at a sink jump
+    nxt = ptr[ptr]
+    moving = nxt != ptr
+    while np.count_nonzero(moving) * _WHOLE_ROUNDS_ABOVE > ptr.size:
+        ptr = nxt
+        nxt = ptr[ptr]
+        np.not_equal(nxt, ptr, out=moving)
+    del nxt
+    active = np.flatnonzero(moving)
+    del moving
     while active.size:
         nxt = ptr[ptr[active]]
         ptr[active] = nxt

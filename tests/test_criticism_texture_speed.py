@@ -1,0 +1,146 @@
+"""The texture model as the explanation of a section x speed effect between sites (issue 33; docs/model-criticism.md,
+section 2, "The texture model as a candidate cause"): the members' x_speed tests, asked as a child family of a
+significant section x speed effect, and the naming rule that then names the texture model, or
+``section (unexplained)`` when the texture does not carry the section effect.
+
+Campaigns built at the residual level: 36 sites in 12 sections, MPD (mm) section-structured, a few texture columns
+without effect; the measured curves, the calibrated simulation (equal to the measured curve plus noise) and the
+texture model's held-out prediction (the measured curve minus the residual written here). Speeds km/h, mu
+dimensionless.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skidsim import criticism as cr
+from skidsim.criticism import DiagnosisOptions
+from skidsim.criticism.causes import SECTION_UNEXPLAINED
+
+SPEEDS_KMH = np.arange(20.0, 71.0, 10.0)
+#: size of the residual's speed slope (mu per 25 km/h)
+SLOPE_MU = 0.02
+
+
+def _campaign(seed: int, slope: str) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """(residuals, sites, texture): the between-site residual's slope over speed is ``SLOPE_MU (v - 45) / 25``
+    times ``z^2 - 1`` (z the standardised MPD: a shape a model linear in MPD cannot carry) for ``slope="mpd"``,
+    times a random number per section for ``"section"`` (the same spread; nothing in the texture carries it)."""
+    rng = np.random.default_rng(seed)
+    n_sec, per = 12, 3
+    sec_idx = np.repeat(np.arange(n_sec), per)
+    n = n_sec * per
+    site = [f"S{k:02d}-{j}" for k in range(n_sec) for j in range(per)]
+    section = [f"S{k:02d}" for k in sec_idx]
+    sites = pd.DataFrame({"site": site, "section": section})
+    mpd_mm = np.exp(np.log(0.9) + 0.35 * rng.normal(size=n_sec)[sec_idx] + 0.08 * rng.normal(size=n))
+    tex = pd.DataFrame(rng.normal(size=(n, 6)), columns=[f"raw_n{j}" for j in range(6)]).assign(
+        site=site, profile_MPD=mpd_mm, micro_Sq=rng.uniform(0.02, 0.05, n)
+    )
+    z = (mpd_mm - mpd_mm.mean()) / mpd_mm.std()
+    if slope == "mpd":
+        amp = z**2 - 1.0
+    else:
+        amp = (np.sqrt(2.0) * rng.normal(size=n_sec))[sec_idx]
+    rows, sim, pred = [], [], []
+    for i, s in enumerate(site):
+        v = SPEEDS_KMH
+        mu = 0.6 - 0.004 * (v - 20.0) + rng.normal(0, 0.003, len(v))
+        resid = SLOPE_MU * amp[i] * (v - 45.0) / 25.0 + rng.normal(0, 0.004, len(v))
+        rows.append(pd.DataFrame({"site": s, "speed_kmh": v, "mu": mu, "kind": "calibration"}))
+        sim.append(pd.DataFrame({"site": s, "speed_kmh": v, "sn": mu + rng.normal(0, 0.002, len(v))}))
+        pred.append(pd.DataFrame({"site": s, "speed_kmh": v, "sn_pred": mu - resid}))
+    res = cr.build_residuals(sites, pd.concat(rows), pd.concat(sim), pd.concat(pred))
+    return res, sites, tex
+
+
+def _screen(seed: int, slope: str):
+    res, sites, tex = _campaign(seed, slope)
+    return cr.screen_candidates(res, sites, tex, DiagnosisOptions(seed=seed))
+
+
+def _between(causes, variable_prefix: str, kind: str):
+    return [
+        c for c in causes if c.level == "between-site" and c.kind == kind and c.variable.startswith(variable_prefix)
+    ]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_speed_shape_nonlinear_in_mpd_names_the_texture_model(seed):
+    """The residual's speed slope is a quadratic of MPD and clusters by section (MPD is section-structured): the
+    section x speed effect is significant, the texture model's x_speed member ``nonlinear in profile_MPD``
+    explains most of it, and the section rule names the texture model, above section identity."""
+    causes = _screen(seed, "mpd")
+    sec = next(c for c in causes if c.variable == "section" and c.level == "between-site" and c.kind == "x_speed")
+    assert sec.significant, sec
+    tm = _between(causes, "texture_model[", "x_speed")
+    assert {c.family for c in tm} == {"child"} and len({c.unit for c in tm}) == 1
+    member = next(c for c in tm if c.variable == "texture_model[nonlinear in profile_MPD]")
+    assert member.significant and member.section_share >= 0.5 and member.p_adjusted >= sec.p_adjusted
+    top = cr.named_cause(causes)
+    assert top is member, causes[:3]
+    assert top.label == "the texture model: the speed shape of friction is a nonlinear function of profile_MPD"
+    assert causes.index(sec) > 0 and causes[causes.index(sec)].label != SECTION_UNEXPLAINED
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_random_section_effect_in_the_speed_slope_is_section_unexplained(seed):
+    """The same spread of slopes, but a random number per section: the texture model's x_speed members do not
+    explain it (not significant, or less than half of the section effect), and ``section (unexplained)`` is named."""
+    causes = _screen(seed, "section")
+    top = cr.named_cause(causes)
+    assert top is not None and top.variable == "section" and top.kind == "x_speed", causes[:3]
+    assert top.label == SECTION_UNEXPLAINED
+    for c in _between(causes, "texture_model[", "x_speed"):
+        assert not (c.significant and c.section_share >= 0.5), c
+
+
+def test_without_a_section_x_speed_effect_the_texture_model_is_not_asked_about_the_speed_shape():
+    """No residual beyond noise: section x speed is not significant, so no x_speed texture-model test is made
+    (the child family is asked only under a significant section x speed effect)."""
+    res, sites, tex = _campaign(3, "mpd")
+    res = res.assign(residual=np.random.default_rng(3).normal(0, 0.004, len(res)))
+    causes = cr.screen_candidates(res, sites, tex, DiagnosisOptions(seed=3))
+    sec = next(c for c in causes if c.variable == "section" and c.level == "between-site" and c.kind == "x_speed")
+    assert not sec.significant
+    assert not _between(causes, "texture_model[", "x_speed")
+
+
+def test_members_of_two_lead_terms_and_the_contact_zone():
+    """With the prediction model's two texture terms the members are a cubic of each, their quadratic surface
+    ``[za zb, za^2, zb^2]`` and, where the table holds raw/micro Sp and Sq (mm), the contact-zone design; without
+    raw_Sp there is no contact-zone member."""
+    from skidsim.criticism.texture_candidate import texture_members
+
+    rng = np.random.default_rng(5)
+    n = 36
+    cov = pd.DataFrame(
+        {
+            "profile_MPD": np.exp(rng.normal(0, 0.3, n)),
+            "micro_Sq": np.exp(rng.normal(-3.5, 0.2, n)),
+            "micro_Sp": np.exp(rng.normal(-2.0, 0.2, n)),
+            "raw_Sq": np.exp(rng.normal(-1.0, 0.2, n)),
+            "raw_Sp": np.exp(rng.normal(0.5, 0.2, n)),
+        },
+        index=[f"s{i}" for i in range(n)],
+    )
+    lead = ("log(profile_MPD)", "log(micro_Sq)")
+    members = texture_members(cov.index, cov, "profile_MPD", np.zeros((n, 2)), lead, 2)
+    names = [m.name for m in members]
+    assert names == [
+        "nonlinear in log(profile_MPD)",
+        "nonlinear in log(micro_Sq)",
+        "curved in log(profile_MPD) and log(micro_Sq)",
+        "contact-zone microtexture",
+    ], names
+    z = lambda x: (x - x.mean()) / x.std()  # noqa: E731
+    za, zb = z(np.log(cov["profile_MPD"].to_numpy())), z(np.log(cov["micro_Sq"].to_numpy()))
+    assert np.allclose(members[2].design[:, 1], z(za**2)) and np.allclose(members[2].design[:, 0], z(za * zb))
+    peak = z(np.log(cov["raw_Sp"] / cov["raw_Sq"]).to_numpy())
+    assert np.allclose(members[3].design[:, 0], peak)
+    assert all(m.design.shape == (n, 3) for m in members)
+    without = texture_members(cov.index, cov.drop(columns="raw_Sp"), "profile_MPD", np.zeros((n, 2)), lead, 2)
+    assert "contact-zone microtexture" not in [m.name for m in without]
+    assert members[0].speed_words == "the speed shape of friction is a nonlinear function of log(profile_MPD)"
