@@ -42,7 +42,7 @@ reproduce: $(STAMP)
 
 ## Run the test suite (every test but the hidden-effect campaigns through the whole workflow: make test-campaigns).
 test: setup-test
-	$(BIN)/python -m pytest -n $(CORES) --dist loadfile --no-loadscope-reorder -q -m "not campaign" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile -q -m "not campaign" $(PYTEST_ARGS)
 
 ## The hidden-effect campaigns through the whole workflow with the real FE (tests marked campaign, minutes each);
 ## CI (.ci/run) runs them after make test.

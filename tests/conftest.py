@@ -11,12 +11,6 @@ guarded by an exclusive lock (``fcntl.flock``; the first worker builds, the othe
 kept rather than ``loadgroup`` because several files hold module-scoped campaigns (test_validation_matrix,
 test_interrupt_resume, test_independent_campaigns): ``loadgroup`` spreads ungrouped tests one by one, and each
 worker that received one of their tests would build the module's campaign again.
-
-Order (``make test`` runs ``--no-loadscope-reorder``): xdist hands out files in collection order, two to each
-worker first, then one to whichever worker is free. :func:`pytest_collection_modifyitems` puts the files that
-take minutes (``LONG_FILES_FIRST``, longest first: two campaigns through the workflow, the fake cluster) at the
-front so that they start at once on different workers and the many short files fill the gaps; xdist's own
-reordering (files with more tests first) started them last, and one worker ran alone for minutes at the end.
 """
 
 from __future__ import annotations
@@ -39,24 +33,6 @@ SNAKEFILE = ROOT / "Snakefile"
 DEFAULT_CONFIG = ROOT / "config" / "config.yaml"
 #: characters of stdout, stderr and the Snakemake log shown when a run fails
 TAIL_CHARS = 4000
-
-
-#: test files that take minutes under ``make test``, longest first (``--durations``, 2026-11-29): handed out first
-LONG_FILES_FIRST = (
-    "test_independent_campaigns.py",
-    "test_cluster.py",
-    "test_criticism_naming.py",
-    "test_diagnosis.py",
-    "test_interrupt_resume.py",
-    "test_texture_quality.py",
-    "test_prediction.py",
-)
-
-
-def pytest_collection_modifyitems(session, config, items) -> None:
-    """Put the tests of ``LONG_FILES_FIRST`` first, in that order; every other test keeps its place (stable)."""
-    rank = {name: i for i, name in enumerate(LONG_FILES_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
 def snakemake_env(**extra: str) -> dict[str, str]:

@@ -68,6 +68,8 @@ rule calibration_identifiability:
         record=f"{RESULTS}/sites/{{site}}/identifiability_{{method}}.json",
     log:
         "logs/calibration_identifiability/{site}_{method}.log",
+    benchmark:
+        "benchmarks/out/calibration_identifiability/{site}_{method}.tsv"
     threads: 1
     resources:
         mem_mb=500,

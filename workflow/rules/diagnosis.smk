@@ -27,6 +27,8 @@ checkpoint diagnosis:
         ),
     log:
         "logs/diagnosis.log",
+    benchmark:
+        "benchmarks/out/diagnosis.tsv"
     threads: 1
     resources:
         mem_mb=2000,
