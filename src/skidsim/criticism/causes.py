@@ -315,15 +315,13 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
             _move(causes, c, _pos(causes, S))  # right below S (S moved up by one)
         expl = [c for c in causes if _explanation(c, S, True, share_min)]
         cols = {id(c): v for c in causes if np.isfinite(v := _column_explains(c, S, causes, share_min))}
+        used.update(id(c) for c in expl)
         if expl:
-            used.update(id(c) for c in expl)
             best = max(expl, key=lambda c: _share_of(c, K))
-            if _pos(causes, best) > _pos(causes, S):
-                _move(causes, best, _pos(causes, S))
-        elif cols:
-            best = max((c for c in causes if id(c) in cols), key=lambda c: cols[id(c)])
-            if _pos(causes, best) > _pos(causes, S):
-                _move(causes, best, _pos(causes, S))
+        else:
+            best = max((c for c in causes if id(c) in cols), key=lambda c: cols[id(c)], default=None)
+        if best is not None and _pos(causes, best) > _pos(causes, S):
+            _move(causes, best, _pos(causes, S))
         k = _pos(causes, S)
         if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
             causes[k] = replace(S, label=SECTION_UNEXPLAINED)
