@@ -9,7 +9,7 @@ Sharing under pytest-xdist (``make test`` runs ``--dist loadfile``): a session-s
 process, so a result several files need is built once into a directory beside the workers' base directories,
 guarded by an exclusive lock (``fcntl.flock``; the first worker builds, the others wait and read). ``loadfile`` is
 kept rather than ``loadgroup`` because several files hold module-scoped campaigns (test_validation_matrix,
-test_interrupt_resume, test_independent_campaigns): ``loadgroup`` spreads ungrouped tests one by one, and each
+test_interrupt_resume, test_independent_campaigns_*): ``loadgroup`` spreads ungrouped tests one by one, and each
 worker that received one of their tests would build the module's campaign again.
 """
 

@@ -1,63 +1,46 @@
 """The refactored step loop against the pre-refactor solver, and the batched runs against single runs.
 
-``tests/data/solver_reference_coarse.npz`` holds SN (with the other scalar results), the energy table and a
-SHA-256 of every trace column of the cases in :func:`reference_cases`, computed with the solver of commit 64ab885
-(``src/skidsim/solver/explicit.py`` before the step loop was split into contact laws and a batch axis was added,
-2026-11-28). The refactored solver must reproduce them bit for bit (``==``), for every contact option
-combination. The batched kernel (:func:`skidsim.solver.simulate_batch`) must give each member the SN and trace of
+Two references hold the results of the cases in :func:`reference_cases`, computed with the solver of commit 64ab885
+(``src/skidsim/solver/explicit.py`` before the step loop was split into contact laws and a batch axis was added):
+
+* ``tests/data/solver_reference_coarse.npz`` (2026-11-28, on the development machine of that day, x86-64 without
+  AVX-512): SN with the other scalar results, the energy table and a SHA-256 of every trace column;
+* ``tests/data/solver_reference_coarse_avx512.npz`` (2026-11-29, an x86-64 machine with AVX-512, NumPy 2.4.6 whose
+  SIMD dispatch found X86_V3, X86_V4, AVX512_ICL and AVX512_SPR): the same scalars and energies and every trace
+  column itself, written by ``tests/data/solver_reference_coarse.py`` with ``PYTHONPATH`` on a checkout of 64ab885.
+
+The bits of a NumPy result depend on the SIMD code path the machine selects (AVX2 and AVX-512 sum in different
+orders): the old solver itself gives different bits on the two machines (SN up to 7e-14 relative apart). So the
+test asks, on every machine, SN and the scalars within 1e-12 relative of both references with the same step
+counts, the energies within 1e-11 of the external work and the traces within 1e-9 relative (the issue's bound);
+and, where the machine reproduces a reference's scalars bit for bit (a machine of that reference's class), the
+energies and every trace column bit for bit too (``==``). Both classes were checked on their machine: bit for bit.
+The batched kernel (:func:`skidsim.solver.simulate_batch`) must give each member the SN, the state and the trace of
 its single run bit for bit (the issue asks 1e-9 relative), also when the members finish their preload and their
-slide at different steps.
+slide at different steps; only the diagnostic per-member means (:data:`DIAGNOSTIC_COLUMNS`, ``np.bincount`` in a
+batch, ``np.sum`` in a single run) and the energies may differ in the last bits.
 """
 
 from __future__ import annotations
 
 import hashlib
-import itertools
 from pathlib import Path
 
 import numpy as np
 import pytest
+from solver_reference_cases import BASE, LAW, PAV, SCALARS, reference_cases
 
 from skidsim.friction import ConstantFriction, ExponentialDecay
 from skidsim.slidermesh import SliderMesh
 from skidsim.solver import SolverConfig, simulate, simulate_batch
 from skidsim.solver.contact import FrictionCoefficient, Segments
 from skidsim.solver.explicit import build_kernel, material_from_config
-from skidsim.solver.surfaces import RandomTexture, TiltedPlane, to_heightfield
+from skidsim.solver.surfaces import TiltedPlane
 
 REF = Path(__file__).parent / "data" / "solver_reference_coarse.npz"
-LAW = ExponentialDecay(0.4, 0.35, 0.6)
-PAV = to_heightfield(RandomTexture(), 0.25e-3)
-BASE = dict(element_mm=2.0, slide_length_mm=6.0, window_start_mm=2.0, progress_every_s=1e9)
-SCALARS = (
-    "sn",
-    "tangential_n",
-    "normal_n",
-    "dt_s",
-    "n_steps",
-    "preload_steps",
-    "max_penetration_um",
-    "mean_contact_area_mm2",
-    "mean_slip_speed_ms",
-    "preload_contact_force_n",
-    "preload_contact_area_mm2",
-    "omega_max_rad_s",
-)
-
-
-def reference_cases():
-    """(name, config, pavement, speed km/h) of the stored reference: every friction model x slide damping x
-    contact gap, Prony terms with both dampings, a penalty length, the campaign preset, an analytic plane."""
-    for fm, sd, gap in itertools.product(("penalty", "stick_limit"), ("rayleigh", "mass"), ("vertical", "normal")):
-        cfg = SolverConfig(**BASE, friction_model=fm, slide_damping_model=sd, contact_gap=gap)
-        yield f"{fm}-{sd}-{gap}", cfg, PAV, 40.0
-    for sd in ("rayleigh", "mass"):
-        cfg = SolverConfig(**BASE, slide_damping_model=sd, prony_g=(0.3,), prony_tau_s=(2e-5,))
-        yield f"prony-{sd}", cfg, PAV, 40.0
-    yield "penalty_length", SolverConfig(**BASE, penalty_length_mm=0.5), PAV, 60.0
-    campaign = SolverConfig.campaign(slide_length_mm=8.0, window_start_mm=2.0, progress_every_s=1e9)
-    yield "campaign", campaign, PAV, 20.0
-    yield "tilted", SolverConfig(**BASE), TiltedPlane(0.1), 40.0
+REF_AVX512 = Path(__file__).parent / "data" / "solver_reference_coarse_avx512.npz"
+#: per-member means of the contact nodes (np.bincount in a batch): a few ulp from the single run's np.sum
+DIAGNOSTIC_COLUMNS = ("slip_speed_ms",)
 
 
 def _trace_sha(r) -> list[str]:
@@ -67,15 +50,45 @@ def _trace_sha(r) -> list[str]:
     ]
 
 
+def _scalars(r) -> np.ndarray:
+    return np.array([getattr(r, k) for k in SCALARS], dtype=float)
+
+
+def _energies(r) -> np.ndarray:
+    return np.array([r.energies[k] for k in sorted(r.energies)])
+
+
+def _assert_close_to_reference(name, r, ref) -> bool:
+    """SN and scalars within 1e-12 relative (step counts equal), energies within 1e-11 of the external work;
+    returns whether the scalars are the reference's bit for bit (a machine of the reference's class)."""
+    got, want = _scalars(r), ref[f"{name}/sn"]
+    steps = [SCALARS.index("n_steps"), SCALARS.index("preload_steps")]
+    assert np.array_equal(got[steps], want[steps]), name
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0.0, err_msg=name)
+    ext = abs(r.energies["external"])
+    np.testing.assert_allclose(_energies(r), ref[f"{name}/energies"], rtol=0.0, atol=1e-11 * ext, err_msg=name)
+    return np.array_equal(got, want, equal_nan=True)
+
+
 @pytest.mark.parametrize("case", list(reference_cases()), ids=lambda c: c[0])
-def test_refactored_loop_is_bit_identical_to_the_pre_refactor_solver(case):
+def test_refactored_loop_is_the_pre_refactor_solver(case):
     name, cfg, pav, v = case
-    ref = np.load(REF)
     r = simulate(pav, v, LAW, cfg)
-    got = np.array([getattr(r, k) for k in SCALARS], dtype=float)
-    assert np.array_equal(got, ref[f"{name}/sn"], equal_nan=True), name
-    assert np.array_equal(np.array([r.energies[k] for k in sorted(r.energies)]), ref[f"{name}/energies"]), name
-    assert _trace_sha(r) == ref[f"{name}/trace_sha256"].tolist(), name
+    ref, ref512 = np.load(REF), np.load(REF_AVX512)
+    if _assert_close_to_reference(name, r, ref):  # this machine is of the first reference's class
+        assert np.array_equal(_energies(r), ref[f"{name}/energies"]), name
+        assert _trace_sha(r) == ref[f"{name}/trace_sha256"].tolist(), name
+    same = _assert_close_to_reference(name, r, ref512)
+    assert list(r.trace.columns) == ref512[f"{name}/trace_columns"].tolist(), name
+    for c in r.trace.columns:
+        want = ref512[f"{name}/trace/{c}"]
+        got = r.trace[c].to_numpy()
+        if same:  # this machine is of the second reference's class
+            assert np.array_equal(got, want, equal_nan=True), (name, c)
+        else:
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.nanmax(np.abs(want)), err_msg=c)
+    if same:
+        assert np.array_equal(_energies(r), ref512[f"{name}/energies"]), name
 
 
 def _assert_same_as_single(results, pav, speeds, laws, cfg):
@@ -83,7 +96,10 @@ def _assert_same_as_single(results, pav, speeds, laws, cfg):
         s = simulate(pav, v, law, cfg)
         assert r.sn == s.sn and r.n_steps == s.n_steps and r.preload_steps == s.preload_steps
         for c in s.trace.columns:
-            assert np.array_equal(r.trace[c].to_numpy(), s.trace[c].to_numpy(), equal_nan=True), c
+            if c in DIAGNOSTIC_COLUMNS:
+                np.testing.assert_allclose(r.trace[c].to_numpy(), s.trace[c].to_numpy(), rtol=1e-13, err_msg=c)
+            else:
+                assert np.array_equal(r.trace[c].to_numpy(), s.trace[c].to_numpy(), equal_nan=True), c
         assert r.max_penetration_um == s.max_penetration_um
         assert r.preload_contact_force_n == s.preload_contact_force_n
         ext = abs(s.energies["external"])

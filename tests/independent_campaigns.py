@@ -1,5 +1,9 @@
 """Independent campaigns through the real workflow (issue 25): scans, FE, calibration, identifiability, regression.
 
+The tests of both generators live here; ``tests/test_independent_campaigns_chips.py`` and
+``tests/test_independent_campaigns_spectral.py`` import them and set the module-scoped ``generator`` fixture, so
+that ``make test`` (``--dist loadfile``) hands the two campaigns to different workers.
+
 A small campaign of each generator independent of :mod:`skidsim.generators.default` (``chips``: aggregate chips in
 binder,
 PIARC/IFI friction; ``spectral``: spectral texture, Rado friction; :mod:`skidsim.generators`) is written to a
@@ -115,13 +119,15 @@ def campaign_overrides(**friction) -> dict:
     return over
 
 
-@pytest.fixture(scope="module", params=GENERATORS)
-def run(request, tmp_path_factory):
-    """One campaign of generator ``request.param`` through the workflow, then the regression again with only
-    the references listed. Returns the tables of both runs and the regression logs."""
+@pytest.fixture(scope="module")
+def run(generator, tmp_path_factory):
+    """One campaign of ``generator`` (a module-scoped fixture of the test file: one of :data:`GENERATORS`) through
+    the workflow, then the regression again with only the references listed. Returns the tables of both runs and
+    the regression logs."""
     from skidsim.generators import write_campaign
 
-    gen = request.param
+    assert generator in GENERATORS, generator
+    gen = generator
     wd = tmp_path_factory.mktemp(f"independent_{gen}")
     write_campaign(wd / "campaign", gen, campaign_overrides())
     cfg = wd / "test.yaml"
