@@ -7,6 +7,7 @@ compares the same table with what a real SLURM granted.
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import subprocess
@@ -18,7 +19,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 CLUSTER_DOC = ROOT / "docs" / "cluster.md"
 
-#: Parses the workflow and prints {rule: [threads, mem_mb, runtime, local]} as JSON.
+#: Parses the workflow and prints {rule: [threads, mem_mb, runtime, local, has a benchmark file]} as JSON.
 _RULES_SCRIPT = r"""
 import json, sys, tempfile
 from pathlib import Path
@@ -42,7 +43,10 @@ with tempfile.TemporaryDirectory() as wd, SnakemakeApi(OutputSettings(quiet=True
         except KeyError:
             return None
 
-    out = {r.name: [value(r, "_cores"), value(r, "mem_mb"), value(r, "runtime"), r.name in local] for r in wf.rules}
+    out = {
+        r.name: [value(r, "_cores"), value(r, "mem_mb"), value(r, "runtime"), r.name in local, r.benchmark is not None]
+        for r in wf.rules
+    }
 print("RULES " + json.dumps(out))
 """
 
@@ -60,6 +64,12 @@ def resource_table(text: str | None = None) -> dict[str, tuple[int, int, int]]:
 
 def declared_rules() -> dict[str, tuple[int | None, int | None, int | None, bool]]:
     """``{rule: (threads, mem_mb, runtime in min, runs locally)}`` of the workflow, from Snakemake's API."""
+    return {k: v[:4] for k, v in _parsed_rules().items()}
+
+
+@functools.cache
+def _parsed_rules() -> dict[str, tuple]:
+    """``{rule: (threads, mem_mb, runtime in min, runs locally, has a benchmark file)}`` (parsed once)."""
     r = subprocess.run(
         [sys.executable, "-c", _RULES_SCRIPT, str(ROOT)], capture_output=True, text=True, cwd=ROOT, timeout=300
     )
@@ -112,3 +122,11 @@ def test_the_comparison_names_each_kind_of_drift():
         "row gone is no rule or group",
         "row loc runs locally",
     ]
+
+
+def test_every_job_writes_a_benchmark_table():
+    """Every rule that runs as a job (not a local rule) has a ``benchmark:`` file under ``benchmarks/out/``, so
+    that the time and memory of every stage of a run can be summed (issue 36)."""
+    missing = sorted(name for name, v in _parsed_rules().items() if not v[3] and not v[4])
+    assert "calibrate" in _parsed_rules() and _parsed_rules()["calibrate"][4]
+    assert missing == [], f"rules without a benchmark: file: {missing}"

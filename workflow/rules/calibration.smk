@@ -124,6 +124,8 @@ rule calibration_summary:
         ),
     log:
         "logs/calibration_summary.log",
+    benchmark:
+        "benchmarks/out/calibration_summary.tsv"
     threads: 1
     resources:
         mem_mb=1000,

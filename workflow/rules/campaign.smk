@@ -64,6 +64,8 @@ rule validate_campaign:
         traces=f"{RESULTS}/ingest/dft_traces.parquet",
     log:
         "logs/validate_campaign.log",
+    benchmark:
+        "benchmarks/out/validate_campaign.tsv"
     threads: 1
     resources:
         mem_mb=1500,

@@ -72,6 +72,8 @@ rule fe_gain:
         gain=f"{DIAG}/fe_gain.json",
     log:
         "logs/fe_gain.log",
+    benchmark:
+        "benchmarks/out/fe_gain.tsv"
     threads: 1
     resources:
         mem_mb=1000,

@@ -12,6 +12,8 @@ rule ifi:
         ifi=report(f"{RESULTS}/ifi/ifi.csv", caption="../report/ifi.rst", category="3 Back-calculation"),
     log:
         "logs/ifi.log",
+    benchmark:
+        "benchmarks/out/ifi.tsv"
     threads: 1
     resources:
         mem_mb=1000,
@@ -35,6 +37,8 @@ rule ifi_validation:
         figure=report(f"{RESULTS}/ifi/ifi_vs_fe.png", caption="../report/ifi_figure.rst", category="3 Back-calculation"),
     log:
         "logs/ifi_validation.log",
+    benchmark:
+        "benchmarks/out/ifi_validation.tsv"
     threads: 1
     resources:
         mem_mb=1000,

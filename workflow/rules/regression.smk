@@ -84,6 +84,8 @@ rule figure11:
         figure=report(f"{REG}/figure11.png", caption="../report/figure11.rst", category="4 Regression"),
     log:
         "logs/figure11.log",
+    benchmark:
+        "benchmarks/out/figure11.tsv"
     threads: 1
     resources:
         mem_mb=1000,

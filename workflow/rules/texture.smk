@@ -127,6 +127,8 @@ rule scan_quality:
         ),
     log:
         "logs/scan_quality.log",
+    benchmark:
+        "benchmarks/out/scan_quality.tsv"
     threads: 1
     resources:
         mem_mb=500,
@@ -154,6 +156,8 @@ rule texture_campaign:
         ),
     log:
         "logs/texture_campaign.log",
+    benchmark:
+        "benchmarks/out/texture_campaign.tsv"
     threads: 1
     resources:
         mem_mb=1000,
