@@ -13,6 +13,9 @@ rule mesh_study:
         "logs/mesh_study.log",
     benchmark:
         "benchmarks/out/mesh_study.tsv"
+    # one long job on one site's pavement: started early it runs beside the per-site jobs; started last it held a
+    # core while the 2-thread regression waited for it (68 s of one idle core, make reproduce 2026-11-29, f550989)
+    priority: 50
     threads: 1
     resources:
         mem_mb=2000,
