@@ -253,13 +253,15 @@ def _explanation(c: Cause, S: Cause, texture: bool, share_min: float) -> bool:
 
 
 def _column_explains(c: Cause, S: Cause, causes: list[Cause], share_min: float) -> float:
-    """The share of the section effect ``S`` that ``c``, a significant section-level column (not section identity)
-    of any level and kind, explains through its test at S's level: of S's kind, or of any kind when S is the
-    site means' effect (the same basis on the same site means). A column established at one level or kind (e.g.
-    the polished aggregate x speed within sites) is thereby the explanation of the section effect it carries at
-    another, even where its own test there has less power than section identity's. NaN when it does not explain
-    at least ``share_min``."""
-    if c is S or not c.significant or not c.section_level or c.section_id:
+    """The share of the section effect ``S`` that ``c``, a significant sites.csv column (not section identity;
+    section-level, or varying within sections as a temperature does) of any level and kind, explains through its
+    test at S's level: of S's kind, or of any kind when S is the site means' effect (the same basis on the same
+    site means). A column established at one level or kind (e.g. the polished aggregate x speed within sites) is
+    thereby the explanation of the section effect it carries at another, even where its own test there has less
+    power than section identity's; a site-level column whose section means carry most of the section effect (the
+    test temperature, drawn per section and per site) is its explanation, although section identity, with a free
+    mean per section, explains more of the site means. NaN when it does not explain at least ``share_min``."""
+    if c is S or not c.significant or not (c.section_level or c.source == "sites") or c.section_id:
         return float("nan")
     shares = [
         _share_of(x, S.kind)
@@ -293,10 +295,11 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
       kind when K is ``main`` and it explains that share of the site means' section effect) that explains at least
       ``share_min`` of it moves right above S (the one with the largest share): the texture model, or the texture
       measure, is the cause;
-    * else a significant section-level column that explains at least ``share_min`` of S through its test at L
-      (:func:`_column_explains`: of kind K, or of any kind when K is ``main``; the column itself may be significant
-      at another level or kind) moves right above S (the one with the largest share);
-    * if no explanation (such a texture cause, or such a section-level column) ranks above S, S is labelled
+    * else a significant sites.csv column (section-level, or varying within sections) that explains at least
+      ``share_min`` of S through its test at L (:func:`_column_explains`: of kind K, or of any kind when K is
+      ``main``; the column itself may be significant at another level or kind) moves right above S (the one with
+      the largest share);
+    * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
       ``section (unexplained)``.
 
     Then a texture-model candidate that explains no significant section effect goes below every other significant
