@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import itertools
 
+import numpy as np
+
 from skidsim.friction import ExponentialDecay
 from skidsim.solver import SolverConfig
 from skidsim.solver.surfaces import RandomTexture, TiltedPlane, to_heightfield
@@ -44,3 +46,13 @@ def reference_cases():
     campaign = SolverConfig.campaign(slide_length_mm=8.0, window_start_mm=2.0, progress_every_s=1e9)
     yield "campaign", campaign, PAV, 20.0
     yield "tilted", SolverConfig(**BASE), TiltedPlane(0.1), 40.0
+
+
+def scalars(r) -> np.ndarray:
+    """The scalars of :data:`SCALARS` of a simulation result, as float64."""
+    return np.array([getattr(r, k) for k in SCALARS], dtype=float)
+
+
+def energies(r) -> np.ndarray:
+    """The energy table of a simulation result in name order."""
+    return np.array([r.energies[k] for k in sorted(r.energies)])

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from solver_reference_cases import BASE, LAW, PAV, SCALARS, reference_cases
+from solver_reference_cases import BASE, LAW, PAV, SCALARS, energies, reference_cases, scalars
 
 from skidsim.friction import ConstantFriction, ExponentialDecay
 from skidsim.slidermesh import SliderMesh
@@ -50,23 +50,15 @@ def _trace_sha(r) -> list[str]:
     ]
 
 
-def _scalars(r) -> np.ndarray:
-    return np.array([getattr(r, k) for k in SCALARS], dtype=float)
-
-
-def _energies(r) -> np.ndarray:
-    return np.array([r.energies[k] for k in sorted(r.energies)])
-
-
 def _assert_close_to_reference(name, r, ref) -> bool:
     """SN and scalars within 1e-12 relative (step counts equal), energies within 1e-11 of the external work;
     returns whether the scalars are the reference's bit for bit (a machine of the reference's class)."""
-    got, want = _scalars(r), ref[f"{name}/sn"]
+    got, want = scalars(r), ref[f"{name}/sn"]
     steps = [SCALARS.index("n_steps"), SCALARS.index("preload_steps")]
     assert np.array_equal(got[steps], want[steps]), name
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=0.0, err_msg=name)
     ext = abs(r.energies["external"])
-    np.testing.assert_allclose(_energies(r), ref[f"{name}/energies"], rtol=0.0, atol=1e-11 * ext, err_msg=name)
+    np.testing.assert_allclose(energies(r), ref[f"{name}/energies"], rtol=0.0, atol=1e-11 * ext, err_msg=name)
     return np.array_equal(got, want, equal_nan=True)
 
 
@@ -76,7 +68,7 @@ def test_refactored_loop_is_the_pre_refactor_solver(case):
     r = simulate(pav, v, LAW, cfg)
     ref, ref512 = np.load(REF), np.load(REF_AVX512)
     if _assert_close_to_reference(name, r, ref):  # this machine is of the first reference's class
-        assert np.array_equal(_energies(r), ref[f"{name}/energies"]), name
+        assert np.array_equal(energies(r), ref[f"{name}/energies"]), name
         assert _trace_sha(r) == ref[f"{name}/trace_sha256"].tolist(), name
     same = _assert_close_to_reference(name, r, ref512)
     assert list(r.trace.columns) == ref512[f"{name}/trace_columns"].tolist(), name
@@ -88,7 +80,7 @@ def test_refactored_loop_is_the_pre_refactor_solver(case):
         else:
             np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.nanmax(np.abs(want)), err_msg=c)
     if same:
-        assert np.array_equal(_energies(r), ref512[f"{name}/energies"]), name
+        assert np.array_equal(energies(r), ref512[f"{name}/energies"]), name
 
 
 def _assert_same_as_single(results, pav, speeds, laws, cfg):

@@ -5,8 +5,9 @@
     PYTHONPATH=/tmp/wt64/src:tests OMP_NUM_THREADS=1 .venv/bin/python tests/data/solver_reference_coarse.py \
         tests/data/solver_reference_coarse_avx512.npz
 
-Per case: the scalars of :data:`SCALARS` (``<case>/sn``), the energies in name order (``<case>/energies``,
-``<case>/energy_names``) and every trace column (``<case>/trace/<column>``, ``<case>/trace_columns``).
+Per case: the scalars of :data:`solver_reference_cases.SCALARS` (``<case>/sn``), the energies in name order
+(``<case>/energies``, ``<case>/energy_names``) and every trace column (``<case>/trace/<column>``,
+``<case>/trace_columns``).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from solver_reference_cases import LAW, SCALARS, reference_cases
+from solver_reference_cases import LAW, energies, reference_cases, scalars
 
 from skidsim.solver import simulate
 
@@ -23,8 +24,8 @@ def main(path: str) -> None:
     out = {}
     for name, cfg, pav, v in reference_cases():
         r = simulate(pav, v, LAW, cfg)
-        out[f"{name}/sn"] = np.array([getattr(r, k) for k in SCALARS], dtype=float)
-        out[f"{name}/energies"] = np.array([r.energies[k] for k in sorted(r.energies)])
+        out[f"{name}/sn"] = scalars(r)
+        out[f"{name}/energies"] = energies(r)
         out[f"{name}/energy_names"] = np.array(sorted(r.energies))
         out[f"{name}/trace_columns"] = np.array(list(r.trace.columns))
         for c in r.trace.columns:
