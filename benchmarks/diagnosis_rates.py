@@ -97,9 +97,12 @@ def run_one(args: tuple) -> dict:
     from skidsim import criticism as cr
     from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
 
-    source, kind, seed, n_perm, n_boot, cache, screen_only = args
+    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond = args
     t0 = time.perf_counter()
     t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache)
+    if beyond is not None and kind != "none":  # rescale: the part beyond the texture model's terms has sd `beyond`
+        size = beyond / truth["effect_sd_beyond_texture_model_mu"]
+        t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, size=size)
     inputs = DiagnosisInputs(
         t["sites"],
         t["measured"],
@@ -137,6 +140,8 @@ def run_one(args: tuple) -> dict:
         "hidden": truth["variable"],
         "effect_sd_mu": truth["effect_sd_mu"],
         "effect_rms_mu": truth["effect_rms_mu"],
+        "effect_sd_beyond_texture_model_mu": truth["effect_sd_beyond_texture_model_mu"],
+        "size": truth["size"],
         "named": label(top),
         "named_variable": top.variable if top is not None else "",
         "named_source": getattr(top, "source", "") if top is not None else "",
@@ -165,7 +170,8 @@ def share(x) -> str:
 
 def table(df: pd.DataFrame) -> str:
     lines = [
-        "| generator | kind | effect size (mu, median) | seeds | hidden variable named top "
+        "| generator | kind | effect size (mu, median; beyond the texture model's terms) | seeds "
+        "| hidden variable named top "
         "| null: named top other than the texture model "
         "(other than a texture cause; any significant other than the texture model) "
         "| gain at held-out sites established, where named | named instead (most often) |",
@@ -189,7 +195,11 @@ def table(df: pd.DataFrame) -> str:
         named = d[d["named"] != ""]
         gain = share(named["gain_established"]) if len(named) else "-"
         miss = d[(d["named_top"] != True) & (d["named"] != "")]  # noqa: E712 (None for none)
-        size = f"{d['effect_sd_mu'].median():.3f}" if k != "none" else "-"
+        size = (
+            f"{d['effect_sd_mu'].median():.3f} ({d['effect_sd_beyond_texture_model_mu'].median():.3f})"
+            if k != "none"
+            else "-"
+        )
         other = miss["named"].value_counts()
         inst = "; ".join(f"{v} x{c}" for v, c in other.head(2).items())
         n_nothing = int((d["named"] == "").sum())
@@ -210,6 +220,13 @@ def main(argv=None):
     ap.add_argument(
         "--screen-only", action="store_true", help="the screening only (named causes; no extension, no gain)"
     )
+    ap.add_argument(
+        "--beyond-size",
+        type=float,
+        default=None,
+        metavar="MU",
+        help="scale each campaign's effect so that its part beyond the texture model's terms has this sd (mu)",
+    )
     ap.add_argument("--out", default=str(ROOT / "results" / "diagnosis_rates"))
     ap.add_argument("--cache", default=str(ROOT / "results" / "diagnosis_rates" / "texture_cache"))
     a = ap.parse_args(argv)
@@ -226,7 +243,12 @@ def main(argv=None):
         if g != "default":
             for d in sorted({s % N_DESIGNS for s in seeds}):
                 generator_texture(g, d, a.cache)
-    jobs = [(g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only) for g in gens for k in kinds for s in seeds]
+    jobs = [
+        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size)
+        for g in gens
+        for k in kinds
+        for s in seeds
+    ]
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
 

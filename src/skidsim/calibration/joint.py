@@ -10,6 +10,7 @@ agree with it within ``tol`` (0.01, below the DFT's repeatability). Speeds in km
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -87,12 +88,17 @@ def calibrate_fast(
         "model": opt.model,
         "slip_offsets_kmh": sur.d.tolist(),
         "b": sur.b.tolist(),
+        # the surrogate state that reproduces the converged batch (None: not converged); the campaign prior's source
+        "fe_implied": None
+        if sur.implied is None
+        else {"b": sur.implied[0].tolist(), "slip_offsets_kmh": sur.implied[1].tolist()},
         "a": sur.a.tolist(),
         "secant_min_dmu": opt.secant_min_dmu,
         "window_kmh": opt.window_kmh,
         "alpha_step_factor": opt.alpha_step_factor,
         "alpha_steps_limited": int(sur.limited),
         "correction_relaxation": opt.correction_relaxation,
+        "fit_gain_tol": opt.fit_gain_tol,
         "prior": None
         if prior is None
         else {k: [float(x) for x in prior[k]] for k in ("speeds_kmh", "b", "slip_offsets_kmh")},
@@ -158,6 +164,9 @@ class _Surrogate:
         self.relaxation = float(opt.correction_relaxation)
         self.n_corrections = 0
         self.whole: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (a, b, d) of the latest whole step
+        # (b, d) that reproduce the converged batch: a batch within tol of the surrogate still measures the FE's
+        # slip offsets (a reference converging in its first batch after the pilot never corrects d from 0)
+        self.implied: tuple[np.ndarray, np.ndarray] | None = None
 
     def start_from_prior(self, prior: Mapping[str, Sequence[float]]) -> None:
         """b and d from the campaign prior (:func:`surrogate_prior`), interpolated to the calibration speeds."""
@@ -227,6 +236,14 @@ class _Surrogate:
         if self.model == "slip" and self.n_corrections >= 2 and self.relaxation < 1.0:
             self.b = b_old + self.relaxation * (self.b - b_old)
             self.d = d_old + self.relaxation * (self.d - d_old)
+
+    def corrected(self, law: ExponentialDecay, mu_i: np.ndarray, sn: np.ndarray) -> _Surrogate:
+        """A copy of the surrogate after the whole correction of :meth:`correct` from the FE batch ``sn`` of ``law``
+        (it reproduces that batch); this surrogate is unchanged."""
+        new = copy.copy(self)
+        new.a, new.b, new.d, new.last = self.a.copy(), self.b.copy(), self.d.copy(), list(self.last)
+        new._correct_whole(law, mu_i, sn)
+        return new
 
     def _correct_whole(self, law: ExponentialDecay, mu_i: np.ndarray, sn: np.ndarray) -> None:
         """The correction of :meth:`correct` as a whole step (the values the latest batch implies)."""
@@ -350,20 +367,36 @@ def _iterate(
         rmse = float(np.sqrt(np.mean((sn - m_cal) ** 2)))
         verified.append((law, rmse, model_err))
         if model_err <= tol:
-            return (
-                law,
-                True,
-                (
-                    f"converged after {it} iteration(s): FE agrees with the surrogate within "
-                    f"{model_err:.2g} <= tol={tol:g}; RMSE vs measured at calibration speeds {rmse:.4g}"
-                ),
-            )
+            after = sur.corrected(law, mu_i, sn)
+            gain = _further_gain(after, v_fit, y_fit, m_cal, bnd, rmse)
+            if opt.fit_gain_tol is None or gain <= opt.fit_gain_tol or len(ev.rows) + spd.size > opt.max_fe_runs:
+                sur.implied = (after.b, after.d)
+                return law, True, _converged_message(it, model_err, tol, rmse, gain, opt.fit_gain_tol)
         sur.correct(law, mu_i, sn)
         prev_law = law
     if not verified:  # pragma: no cover - max_fe_runs >= speeds guarantees one batch
         return law, False, message
     best = min(verified, key=lambda t: t[1])[0]
     return best, False, message + f"; kept the verified law with the smallest RMSE vs measured ({best})"
+
+
+def _further_gain(after: _Surrogate, v_fit, y_fit, m_cal, bnd, rmse: float) -> float:
+    """RMSE (mu) at the calibration speeds that one more batch would gain by the surrogate ``after`` (corrected on
+    the batch just verified, whose RMSE vs measured there is ``rmse``): ``rmse`` minus the surrogate's RMSE of its
+    refit law. <= 0 when the refit does not fit the calibration speeds better."""
+    law2, _ = after.fit(v_fit, y_fit, bnd)
+    _, pred2 = after.predict(law2)
+    return rmse - float(np.sqrt(np.mean((pred2 - m_cal) ** 2)))
+
+
+def _converged_message(it: int, model_err: float, tol: float, rmse: float, gain: float, gain_tol) -> str:
+    msg = (
+        f"converged after {it} iteration(s): FE agrees with the surrogate within {model_err:.2g} <= tol={tol:g}; "
+        f"RMSE vs measured at calibration speeds {rmse:.4g}"
+    )
+    if gain_tol is not None:
+        msg += f"; a further batch would gain {gain:.2g} <= fit_gain_tol={gain_tol:g} in that RMSE (predicted)"
+    return msg
 
 
 def alpha_window(alpha_prev: float, bound: Sequence[float], opt: JointOptions) -> tuple[float, float] | None:
@@ -383,11 +416,16 @@ def alpha_window(alpha_prev: float, bound: Sequence[float], opt: JointOptions) -
 
 def surrogate_prior(results: Sequence[CalibrationResult]) -> dict:
     """The campaign prior of our method: the median, over reference sites calibrated without a prior, of the
-    surrogate's final geometric factor ``b`` and slip offsets ``d`` (km/h) at each calibration speed.
+    geometric factor ``b`` and slip offsets ``d`` (km/h) at each calibration speed that reproduce each reference's
+    converged FE batch (``settings["fe_implied"]``: the whole correction of that batch; results written before
+    it existed give the surrogate's final ``b`` and ``d``).
 
     Both are properties of the FE slider's dynamics (how much faster its contact nodes slip than the holder
-    moves, and the ratio of SN to mu at the effective slip speed) and vary little between sites of one campaign
-    (default campaign: d = 6.9 +- 1.3, 5.3 +- 1.0, 2.9 +- 0.8 km/h at 20, 40, 60 km/h; b = 1.045 +- 0.013).
+    moves, and the ratio of SN to mu at the effective slip speed) and vary little between sites of one campaign.
+    The converged batch, not the surrogate's final state, is the measurement: a reference that converges in the
+    batch after its pilot never corrects d, so its final d is the start value 0, whatever the FE did (default
+    campaign, 2026-11-29: two of the three references; the prior's d was then 0 while the other sites' FE implied
+    about 2.5 / 1.8 / 0.6 km/h at 20 / 40 / 60 km/h, and 26 of 33 sites needed a second batch).
     Raises ValueError when no result is usable (converged, model "slip", same calibration speeds).
     """
     usable = [
@@ -400,8 +438,9 @@ def surrogate_prior(results: Sequence[CalibrationResult]) -> dict:
     speeds = [tuple(float(v) for v in r.settings["speeds_kmh"]) for r in usable]
     if len(set(speeds)) != 1:
         raise ValueError(f"surrogate_prior: reference calibrations used different speeds {sorted(set(speeds))}")
-    b = np.median(np.array([r.settings["b"] for r in usable], dtype=float), axis=0)
-    d = np.median(np.array([r.settings["slip_offsets_kmh"] for r in usable], dtype=float), axis=0)
+    states = [r.settings.get("fe_implied") or r.settings for r in usable]
+    b = np.median(np.array([s["b"] for s in states], dtype=float), axis=0)
+    d = np.median(np.array([s["slip_offsets_kmh"] for s in states], dtype=float), axis=0)
     return {"speeds_kmh": list(speeds[0]), "b": b.tolist(), "slip_offsets_kmh": d.tolist(), "n_sites": len(usable)}
 
 

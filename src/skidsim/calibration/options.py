@@ -165,6 +165,10 @@ class JointOptions:
         the latest batch alone. Below 1 it is an under-relaxed fixed-point iteration: where the FE's response
         differs between the laws tried (coarse texture), whole steps chase the latest batch and oscillate
         (docs/calibration.md, "Relaxed corrections and the FE budget").
+    fit_gain_tol: mu, or None. A batch within ``tol`` converges only when one more batch would not improve the
+        RMSE vs measured at the calibration speeds by more than this (predicted by the surrogate corrected on that
+        batch: its refit law against the batch's verified RMSE); otherwise the surrogate is corrected and another
+        batch runs (budget permitting). None: ``tol`` alone decides.
     """
 
     tol: float = 0.01
@@ -182,6 +186,7 @@ class JointOptions:
     alpha_step_floor_s_per_m: float = 0.02
     alpha_step_max_cost: float = 0.005
     correction_relaxation: float = 0.5
+    fit_gain_tol: float | None = 0.004
 
     def __post_init__(self):
         where = "calibration.ours"
@@ -214,6 +219,8 @@ class JointOptions:
         r = self.correction_relaxation
         if isinstance(r, bool) or not isinstance(r, (int, float)) or not 0 < r <= 1:
             raise ConfigError(f"{where}.correction_relaxation: expected a number in (0, 1], got {r!r}")
+        if self.fit_gain_tol is not None:
+            _positive(f"{where}.fit_gain_tol", self.fit_gain_tol)
 
     @classmethod
     def from_config(cls, section: Mapping | None) -> JointOptions:
