@@ -10,11 +10,14 @@ the full 114.3 mm clamped to the strip) with wall time, element-steps/s and the 
 ``--campaign-cost [--repeat N]`` times only the campaign preset (full slide, RandomTexture) at 20/40/60 km/h with
 each contact variant (``stick_limit``, ``penalty``, ``penalty`` + Rayleigh damping), the variants interleaved and
 each run repeated N times (median CPU time), and prints the cost per FE run relative to ``stick_limit``.
-``--batch [--repeat N] [--laws K]`` prints the old path (one ``simulate`` per run) and the new one (one
-``simulate_batch`` of the same runs) in the same process, interleaved: median CPU s per campaign FE run (full slide,
-RandomTexture) of a calibration batch (20/40/60 km/h, one law) and of a validation batch (K laws x 20..70 km/h),
-the ratio and the largest relative SN difference; then element-steps per CPU second of the 0.5 mm reference preset
-(8 mm slides at 20/40/60 km/h), old and new.
+``--batch [--repeat N] [--laws K] [--pavement-kind fine|heightfield|both]`` prints the old path (one ``simulate``
+per run) and the new one (one ``simulate_batch`` of the same runs) in the same process, interleaved: median CPU s per
+campaign FE run (full slide) of a calibration batch (20/40/60 km/h, one law) and of a validation batch (K laws x
+20..70 km/h), the ratio and the largest relative SN difference; then element-steps per CPU second of the 0.5 mm
+reference preset (8 mm slides at 20/40/60 km/h), old and new. Pavements (``PAVEMENT_KINDS``): ``fine`` (default, the
+figures of the earlier reports) is RandomTexture on its default 200 x 60 mm extent sampled as a Heightfield at
+0.1 mm; ``heightfield`` is a pavement like the workflow's: RandomTexture(seed 0) on a 122.4 x 100 mm strip sampled
+at 0.5 mm; ``both`` runs the two in turn.
 Timings on a shared machine are disturbed by other processes: report them with that caveat.
 """
 
@@ -153,7 +156,18 @@ def _old_and_new(pav, speeds, laws, cfg, repeat: int):
     return statistics.median(old), statistics.median(new), singles, batch
 
 
-def bench_batch(repeat: int, pav, n_laws: int) -> None:
+#: ``--pavement-kind`` of ``--batch``: label and pavement (the fine one: the figures of the earlier reports; the
+#: heightfield: the workflow's 0.5 mm grid spacing on a strip of the DFT's extent)
+PAVEMENT_KINDS = {
+    "fine": ("RandomTexture, Heightfield at 0.1 mm", lambda: to_heightfield(RandomTexture(), 0.1e-3)),
+    "heightfield": (
+        "Heightfield at 0.5 mm of RandomTexture(seed 0) on 122.4 x 100 mm",
+        lambda: to_heightfield(RandomTexture(seed=0, extent_m=(0, 0.1224, -0.05, 0.05)), spacing_m=0.5e-3),
+    ),
+}
+
+
+def bench_batch(repeat: int, pav, n_laws: int, pav_label: str = "RandomTexture, Heightfield at 0.1 mm") -> None:
     """Old (one ``simulate`` per run) against new (``simulate_batch``): CPU s per campaign FE run, element-steps/s."""
     cfg = SolverConfig.campaign(progress_every_s=1e9)
     laws = BATCH_LAWS[:n_laws]
@@ -164,14 +178,16 @@ def bench_batch(repeat: int, pav, n_laws: int) -> None:
             [law for law in laws for _ in range(6)],
         ),
     }
-    print(f"campaign preset (full slide, RandomTexture), median CPU s of {repeat} interleaved repeats, one BLAS thread")
+    print(f"campaign preset (full slide, {pav_label}), median CPU s of {repeat} interleaved repeats, one BLAS thread")
     for label, (speeds, ls) in cases.items():
         t_old, t_new, singles, batch = _old_and_new(pav, speeds, ls, cfg, repeat)
         n = len(speeds)
         d_sn = max(abs(b.sn / s.sn - 1.0) for s, b in zip(singles, batch))
+        d_abs = max(abs(b.sn - s.sn) for s, b in zip(singles, batch))
         print(
             f"  {label}: {n} runs, {sum(r.n_steps for r in singles)} steps; old {t_old / n:.3f} s per run, "
-            f"new {t_new / n:.3f} s per run, ratio {t_old / t_new:.2f}x; max |SN_batch / SN_single - 1| {d_sn:.1e}"
+            f"new {t_new / n:.3f} s per run, ratio {t_old / t_new:.2f}x; max |SN_batch / SN_single - 1| {d_sn:.1e}, "
+            f"max |SN_batch - SN_single| {d_abs:.1e}"
         )
     ref = SolverConfig.reference(slide_length_mm=8.0, window_start_mm=3.0, progress_every_s=1e9)
     t_old, t_new, singles, batch = _old_and_new(pav, [20.0, 40.0, 60.0], [LAW] * 3, ref, max(1, repeat // 2))
@@ -196,11 +212,20 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs per variant and speed (with --campaign-cost)")
     ap.add_argument("--batch", action="store_true", help="old path (single runs) against simulate_batch only")
     ap.add_argument("--laws", type=int, default=2, help="laws of the validation batch (with --batch, 1-4)")
+    ap.add_argument(
+        "--pavement-kind",
+        choices=(*PAVEMENT_KINDS, "both"),
+        default="fine",
+        help="pavement of --batch: fine (RandomTexture at 0.1 mm), heightfield (0.5 mm, like the workflow's), both",
+    )
     a = ap.parse_args()
     rep = 3 if a.quick else 7
     if a.batch:
+        kinds = list(PAVEMENT_KINDS) if a.pavement_kind == "both" else [a.pavement_kind]
         with threadpool_limits(1, user_api="blas"):
-            bench_batch(a.repeat, to_heightfield(RandomTexture(), 0.1e-3), a.laws)
+            for kind in kinds:
+                label, make = PAVEMENT_KINDS[kind]
+                bench_batch(a.repeat, make(), a.laws, label)
         return
     if a.campaign_cost:
         with threadpool_limits(1, user_api="blas"):

@@ -157,3 +157,43 @@ def test_bad_options_name_the_field():
     with pytest.raises(ConfigError, match="friction_stiffness_pa_per_m"):
         SolverConfig(friction_stiffness_pa_per_m=0.0)
     assert SolverConfig.from_dict({"loss_band_hz": [100, 200]}).loss_band_hz == (100.0, 200.0)
+
+
+def _bits(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=float).view(np.int64)
+
+
+def test_scalar_paths_of_the_contact_laws_give_the_array_paths_bits():
+    """Small contact sets take Python-float paths (``contact.SCALAR_MAX_NODES``): every output bit for bit (signs of
+    zeros included) the array paths', on random nodes around a heightfield, with stick, slip and zero velocities."""
+    from skidsim.solver.contact import normal_contact, penalty_step
+    from skidsim.solver.surfaces import RandomTexture, SurfaceBound, to_heightfield
+
+    hf = to_heightfield(RandomTexture(extent_m=(0.0, 0.02, -0.01, 0.01)), 0.5e-3)
+    bound = SurfaceBound(hf)
+    rng = np.random.default_rng(5)
+    n = 40
+    law = ExponentialDecay(0.5, 0.3, 0.4)
+    n_stick = n_slip = 0
+    for trial in range(12):
+        xyz = np.stack([rng.uniform(0.0, 0.02, n), rng.uniform(-0.01, 0.01, n), np.zeros(n)])
+        xyz[2] = hf.evaluate(xyz[0], xyz[1])[0] + rng.uniform(-4e-5, 1e-4, n)
+        k_pen, area = rng.uniform(1e3, 1e5, n), rng.uniform(1e-7, 1e-6, n)
+        ft0 = rng.standard_normal((3, n)) * rng.uniform(0.0, 0.05, n)
+        for normal_gap in (True, False):
+            out = []
+            for scalar_max in (0, n):  # the array path, the scalar path
+                c = normal_contact(hf, bound, xyz.copy(), k_pen, area, normal_gap, np.arange(n), scalar_max)
+                m = c.ia.size
+                vt = np.random.default_rng(trial).standard_normal((3, m)) * (np.arange(m) % 4 != 0)  # some at rest
+                ft = ft0.copy()
+                fric, stick, s = penalty_step(ft, vt, np.full(m, 1e-3), c, law.mu, scalar_max)
+                out.append((c, fric.copy(), stick, s, ft))
+            (ca, *ra), (cs, *rs) = out
+            assert ca.ia.size > 0 and np.array_equal(ca.ia, cs.ia)
+            for name in ("d_m", "gx", "gy", "kd_n", "force_n", "normal_n", "normal", "rows"):
+                assert np.array_equal(_bits(getattr(ca, name)), _bits(getattr(cs, name))), name
+            for a, b in zip(ra, rs):
+                assert np.array_equal(_bits(a), _bits(b))
+            n_stick, n_slip = n_stick + ra[1].sum(), n_slip + (~ra[1]).sum()
+    assert n_stick > 10 and n_slip > 10

@@ -20,13 +20,13 @@ Speeds km/h, residuals mu (dimensionless).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .adjustment import adjusted_basis, basis, leverage_corrected, residualise, texture_adjustment
+from .adjustment import adjusted_basis, basis, lead_design, leverage_corrected, residualise, texture_adjustment
 from .causes import Cause, make_causes, rank_causes
 from .covariates import CandidateRoles, CandidateSet, candidate_set, scores_for
 from .crossval import cv_sse, cv_sse_design, folds, is_section_nested
@@ -113,6 +113,7 @@ class LevelContext:
     is_section_id: dict
     bases: dict
     amp_col: str | None
+    cv_columns: dict = field(default_factory=dict)  # tested column in place of C[c] (texture_beyond_lead)
 
     @property
     def n(self) -> int:
@@ -215,10 +216,11 @@ def _covariate_test(
     if adj:
         sse0, sse1 = cv_sse(ta.Ys_cv[kind], ctx.C[c], dtype, folds(ctx.sec, nested), nuisance=ta.scores[:, : ta.k_cv])
     else:
-        sse0, sse1 = cv_sse(Y, ctx.C[c], dtype, folds(ctx.sec, nested))
+        sse0, sse1 = cv_sse(Y, ctx.cv_columns.get(c, ctx.C[c]), dtype, folds(ctx.sec, nested))
     direction = 0
     if dtype == "numeric":
-        zc = ctx.C[c].to_numpy(float) - ctx.C[c].mean()
+        col = ctx.cv_columns.get(c, ctx.C[c])
+        zc = col.to_numpy(float) - col.mean()
         bk = batch.bases[c]
         z = bk[:, 0] * np.sign(bk[:, 0] @ zc) if adj else zc
         target = Y[:, 0] if kind == "main" else (Y if adj else ctx.D) @ ctx.speed_c
@@ -449,6 +451,29 @@ def _members(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None, l
     return texture_members(ctx.data.site_ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead)
 
 
+def texture_beyond_lead(ctx: LevelContext, cands: CandidateSet, lead) -> None:
+    """Between sites, test each texture column for what it adds beyond the prediction model's texture terms
+    ``lead`` (e.g. ``log(profile_MPD)``, ``log(micro_Sq)``): its basis becomes the unit part of the centred column
+    orthogonal to ``[1, lead columns]`` (empty when the column lies in their span). The between-site residual is
+    ``measured - sn_pred`` of a model trained on those terms, so it has lost whatever the terms carry of an
+    effect; the raw column correlates with what is left only through that part (chips: macro_Sdq has R^2 0.88 on
+    the two terms, so its raw basis catches about 12 % of its own effect's residual). Within sites (the residual
+    of the calibrated simulation, which no texture model enters) and without lead terms the bases stay."""
+    if ctx.data.level != "between-site" or not lead:
+        return
+    L = lead_design(cands.covariates.loc[ctx.data.site_ids], lead)
+    if L is None:
+        return
+    F = np.c_[np.ones(ctx.n), L]
+    for c, (source, dtype) in ctx.info.items():
+        if source != "texture" or dtype != "numeric" or c not in ctx.bases or ctx.bases[c].shape[1] != 1:
+            continue
+        z = residualise(ctx.bases[c], F)[:, 0]
+        nz = float(np.linalg.norm(z))
+        ctx.bases[c] = (z / nz)[:, None] if nz > 1e-8 * np.sqrt(ctx.n) else np.zeros((ctx.n, 0))
+        ctx.cv_columns[c] = pd.Series(z, index=ctx.C.index)
+
+
 def _between_shape(residuals: pd.DataFrame, data: dict, speed_bin_kmh: float) -> pd.DataFrame | None:
     """``sn_sim - sn_pred`` per between-site site and bin, where it covers exactly the between-site sites."""
     if "between-site" not in data:
@@ -491,6 +516,7 @@ def screen_candidates(
     tests, between = [], None
     for d in data.values():
         ctx = level_context(d, cands, P, rng)
+        texture_beyond_lead(ctx, cands, texture_lead)
         cov_tests = covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
         section_shares(ctx, cov_tests)
         tests += cov_tests

@@ -31,26 +31,32 @@ import numpy as np
 _TINY = np.finfo(float).tiny  # smallest normal double (looked up once: np.finfo costs a call per step)
 
 
-def return_map(f_trial_n: np.ndarray, limit_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def return_map(
+    f_trial_n: np.ndarray, limit_n: np.ndarray, out: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Project trial tangential forces ``(3, n)`` (N) onto the discs ``|f| <= limit_n`` (N).
 
-    Returns ``(f, stick)``: the admissible forces and a boolean mask of the nodes that stayed elastic (stick).
+    Returns ``(f, stick)``: the admissible forces (in ``out`` if given) and a boolean mask of the nodes that stayed
+    elastic (stick).
     """
-    mag = np.sqrt((f_trial_n * f_trial_n).sum(axis=0))
+    mag = np.add.reduce(f_trial_n * f_trial_n, 0)
+    np.sqrt(mag, out=mag)
     stick = mag <= limit_n
     # min(1, limit / |f|): 1 inside the disc (also at |f| = 0), the radial scale-back outside
-    scale = np.minimum(1.0, limit_n / np.maximum(mag, _TINY))
-    return f_trial_n * scale, stick
+    np.maximum(mag, _TINY, out=mag)
+    scale = np.divide(limit_n, mag, out=mag)
+    np.minimum(1.0, scale, out=scale)
+    return np.multiply(f_trial_n, scale, out=out), stick
 
 
-def tangential_part(a: np.ndarray, nx: np.ndarray, ny: np.ndarray, nz: np.ndarray) -> np.ndarray:
-    """The part of vectors ``a`` (3, n) in the plane normal to the unit normals ``(nx, ny, nz)`` (new array)."""
-    an = a[0] * nx + a[1] * ny + a[2] * nz
-    t = a.copy()
-    t[0] -= an * nx
-    t[1] -= an * ny
-    t[2] -= an * nz
-    return t
+def tangential_part(a: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """The part of vectors ``a`` (3, n) in the plane normal to the unit normals ``normal`` (3, n) (new array):
+    ``a - (a_x n_x + a_y n_y + a_z n_z) n``."""
+    p = a * normal
+    an = np.add(p[0], p[1])
+    an += p[2]
+    np.multiply(an, normal, out=p)
+    return np.subtract(a, p, out=p)
 
 
 def penalty_friction(
@@ -58,7 +64,8 @@ def penalty_friction(
     du_t_m: np.ndarray,
     k_t_n_per_m: np.ndarray,
     limit_n: np.ndarray,
-    normal: tuple[np.ndarray, np.ndarray, np.ndarray],
+    normal,
+    out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One step of the penalty friction law (see the module docstring).
 
@@ -66,11 +73,13 @@ def penalty_friction(
     du_t_m: (3, n) displacement increments (m) of the nodes over the step (projected here); only the product
     ``k_t_n_per_m * du_t_m`` enters, so the solver passes the velocities (m/s) with ``k_t dt`` (N s/m).
     k_t_n_per_m: (n,) tangential penalty stiffness (N/m) = stiffness per area x tributary area.
-    limit_n: (n,) slip limit mu(s) N (N). normal: unit surface normals (nx, ny, nz), each (n,).
-    Returns ``(f, stick)`` as :func:`return_map`.
+    limit_n: (n,) slip limit mu(s) N (N). normal: unit surface normals (nx, ny, nz), (3, n) (or a tuple of rows).
+    Returns ``(f, stick)`` as :func:`return_map` (``f`` in ``out`` if given).
     """
     # P_t f_old - k_t P_t du = P_t (f_old - k_t du): the projection is linear, one projection for two
-    return return_map(tangential_part(f_old_n - k_t_n_per_m * du_t_m, *normal), limit_n)
+    trial = np.multiply(k_t_n_per_m, du_t_m)
+    np.subtract(f_old_n, trial, out=trial)
+    return return_map(tangential_part(trial, np.asarray(normal)), limit_n, out)
 
 
 def rayleigh_coefficients(loss_factor: float, band_hz: tuple[float, float]) -> tuple[float, float]:

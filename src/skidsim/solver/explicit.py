@@ -433,6 +433,12 @@ class _Batch:
         self.fbeta = np.zeros(shape) if self.kern_beta is not None else None
         self.mu = FrictionCoefficient(self.laws)
         self.ub, self.vb, self.fb = (a[:, 0].reshape(3, -1) for a in (self.u, self.v, self.f))
+        self.f_top_z = self.f[2, -1]  # views made once: dead load, holder forces, top velocities, dashpot sums
+        self.f_top_xz = self.f[::2, -1].reshape(2, n, -1)
+        self.fdamp_xz = self.fdamp[::2].reshape(2, -1) if n == 1 else None
+        self.v_top = self.v[:, -1]
+        self.top_v = np.zeros((3, n, 1, 1))  # m/s: (vx, 0, vz) per member
+        self.frame_x = None  # sliding: -c m vx (N), the dashpots' frame term in x (made at the first slide step)
         assert np.shares_memory(self.ub, self.u) and np.shares_memory(self.fb, self.f)
         self.Xb = np.tile(m.X[:, 0].reshape(3, -1), (1, n))
         self.xyz_b = np.empty_like(self.Xb)
@@ -443,6 +449,7 @@ class _Batch:
         self.inv_mb_dt, self.mb_over_dt = m.dt / m_bf, m_bf / m.dt
         self.area_bf = np.tile(m.area_b.ravel(), n)
         self.all_nodes = np.arange(n * m.n_face)
+        self.face_starts = np.arange(n + 1) * m.n_face  # first flat bottom node of each member, and the end
         lo = int(self.ids[0])  # rows of the members in the output's per-member arrays: a slice when contiguous
         contiguous = np.array_equal(self.ids, np.arange(lo, lo + n))
         self.rows = slice(lo, lo + n) if contiguous else self.ids
@@ -540,15 +547,15 @@ class _Phase:
 
 @dataclass
 class _StepOut:
-    """Contact of the step and the per-member sums that enter the trace (N, m^2). A batch of one sums only what
-    each step needs (``fz``, ``area``: floats) and leaves ``sums`` None (the trace row sums its own)."""
+    """Contact of the step and the per-member sums that enter the trace (N, m^2): the sums of the rows of
+    ``contact.rows`` (``(8,)`` for a batch of one, whose ``fz`` and ``area`` are floats, else ``(8, B)``)."""
 
     contact: Contact
     fric: np.ndarray
     stick: np.ndarray
     s: np.ndarray
     seg: Segments
-    sums: np.ndarray | None  # rows: contact force x, z; friction x, z; contact area; normal force N
+    sums: np.ndarray  # rows: contact force x, y, z; friction x, y, z; contact area; normal force N
     fz: np.ndarray | float  # pavement force on the slider in z, N
     area: np.ndarray | float  # contact area, m^2
 
@@ -561,9 +568,10 @@ class _Clock:
         self.ph = [0.0] * len(PHASES)
         self.every_s, self.progress = config.progress_every_s, progress
         self.t = self.t0
+        self._now = time.perf_counter  # bound once: lap runs 7 times a step
 
     def lap(self, phase: int) -> None:
-        now = time.perf_counter()
+        now = self._now()
         self.ph[phase] += now - self.t
         self.t = now
 
@@ -596,7 +604,10 @@ def _internal_force(m: _Model, b: _Batch, ph: _Phase, k: int, load_factor: float
         diss = b.kern.relax(m.dt)
         if ph.sliding:
             b.e["viscous"] += float(diss[0]) if b.one else diss
-    b.f[2, -1] += load_factor * m.f_top
+    if load_factor == 1.0:  # 1.0 * f_top is f_top: no product
+        b.f_top_z += m.f_top
+    else:
+        b.f_top_z += load_factor * m.f_top
 
 
 def _damping_force(b: _Batch, ph: _Phase) -> None:
@@ -606,15 +617,17 @@ def _damping_force(b: _Batch, ph: _Phase) -> None:
     the texture is not resisted; preload: to the ground (dynamic relaxation of the whole slider).
     """
     if ph.c_per_s > 0:
-        np.multiply(b.v, ph.neg_cm, out=b.fdamp)  # -c m (v - v_frame), frame terms on two components
+        fd = np.multiply(b.v, ph.neg_cm, out=b.fdamp)  # -c m (v - v_frame), frame terms on two components
         if ph.sliding:
-            b.fdamp[0] -= (b.vx1 if b.one else b.v_slide[:, None, None]) * ph.neg_cm
+            if b.frame_x is None:
+                b.frame_x = (b.vx1 if b.one else b.v_slide[:, None, None]) * ph.neg_cm
+            np.subtract(fd[0], b.frame_x, out=fd[0])
             if b.one:
                 if b.vz[0] != 0.0:
-                    b.fdamp[2] -= float(b.vz[0]) * ph.neg_cm
-            elif np.any(b.vz != 0.0):
-                b.fdamp[2] -= b.vz[:, None, None] * ph.neg_cm
-        b.f += b.fdamp
+                    np.subtract(fd[2], float(b.vz[0]) * ph.neg_cm, out=fd[2])
+            elif b.vz.any():  # a nonzero (or NaN) vz: np.any(vz != 0) without its wrapper
+                np.subtract(fd[2], b.vz[:, None, None] * ph.neg_cm, out=fd[2])
+        b.f += fd
     if ph.sliding and b.kern_beta is not None:  # -beta K v: rigid (frame) motion is in K's null space
         b.kern_beta.force(b.v, b.fbeta, negate=True)
         b.f += b.fbeta
@@ -623,12 +636,13 @@ def _damping_force(b: _Batch, ph: _Phase) -> None:
 def _contact_and_friction(m: _Model, b: _Batch, clock: _Clock) -> _StepOut:
     """Penalty contact on the candidate nodes, then friction (stick limit or penalty with return mapping)."""
     fb, vb = b.fb, b.vb
-    xb, yb, zb = np.add(b.Xb, b.ub, out=b.xyz_b)  # current positions of the bottom nodes, m
-    c = normal_contact(m.pavement, m.bound, xb, yb, zb, b.k_pen_f, m.config.contact_gap == "normal", b.all_nodes)
+    xyz = np.add(b.Xb, b.ub, out=b.xyz_b)  # current positions of the bottom nodes, m
+    c = normal_contact(m.pavement, m.bound, xyz, b.k_pen_f, b.area_bf, m.config.contact_gap == "normal", b.all_nodes)
     ia = c.ia
-    fb[:, ia] += c.force_n
+    f_c = fb.take(ia, axis=1)  # the contact nodes' forces: + contact, + friction, written back once (same sums)
+    f_c += c.force_n
     clock.lap(2)
-    seg = Segments(ia, m.n_face, b.n)
+    seg = Segments(ia, m.n_face, b.n, b.face_starts)
     if b.mu.shared:
         mu = b.mu.laws[0].mu
     else:
@@ -637,17 +651,19 @@ def _contact_and_friction(m: _Model, b: _Batch, clock: _Clock) -> _StepOut:
             return b.mu(s, seg)
 
     if m.config.friction_model == "penalty":
-        fric, stick, s = penalty_step(b.ft_state, vb[:, ia], b.k_fric_dt_f[ia], c, mu)
+        fric, stick, s = penalty_step(b.ft_state, vb.take(ia, axis=1), b.k_fric_dt_f.take(ia), c, mu)
     else:
-        fric, stick, s = stick_limit_friction(vb[:, ia], fb[:, ia], b.inv_mb_dt[ia], b.mb_over_dt[ia], c, mu)
-    fb[:, ia] += fric
+        fric, stick, s = stick_limit_friction(
+            vb.take(ia, axis=1), f_c, b.inv_mb_dt.take(ia), b.mb_over_dt.take(ia), c, mu
+        )
+    f_c += fric
+    fb[:, ia] = f_c
     if b.one:
-        fz = float(_add(c.force_n[2], None) + _add(fric[2], None))
-        out = _StepOut(c, fric, stick, s, seg, None, fz, float(_add(b.area_bf[ia], None)))
+        sums = _add(c.rows, 1)
+        out = _StepOut(c, fric, stick, s, seg, sums, float(sums[2] + sums[5]), float(sums[6]))
     else:
-        rows = np.stack([c.force_n[0], c.force_n[2], fric[0], fric[2], b.area_bf[ia], c.normal_n])
-        sums = seg.sums(rows)
-        out = _StepOut(c, fric, stick, s, seg, sums, sums[1] + sums[3], sums[4])
+        sums = seg.sums(c.rows)
+        out = _StepOut(c, fric, stick, s, seg, sums, sums[2] + sums[5], sums[6])
     clock.lap(3)
     return out
 
@@ -659,50 +675,32 @@ def _advance(m: _Model, b: _Batch, ph: _Phase, st: _StepOut) -> None:
     operations, without the cost of 1-element arrays).
     """
     one = b.one
-    if one:  # net x and z forces on the top face
-        fx_top, fz_holder = float(_add(b.f[0, -1], None)), float(_add(b.f[2, -1], None))
+    top = _add(b.f_top_xz, 2)  # net x and z forces on the top face, (2, B)
+    if one:
+        fx_top, fz_holder = top.ravel().tolist()
         vz_old, vx = float(b.vz[0]), b.vx1
     else:
-        fx_top, fz_holder = b.f[::2, -1].reshape(2, b.n, -1).sum(axis=2)
+        fx_top, fz_holder = top
         vz_old, vx = b.vz, b.v_slide
-    react_x = -fx_top  # reaction = -(net force) there
     fz_hd = -m.c_holder * vz_old if ph.sliding else (0.0 if one else np.zeros(b.n))  # holder dashpot to the ground
     vz = vz_old + m.dt * (fz_holder + fz_hd) / m.m_holder
     if ph.sliding:
-        ia = st.contact.ia
-        vb_old = b.vb[:, ia]
-        if ph.c_per_s > 0:
-            fd_dot_v_old = b.mdot(b.fdamp, b.v)  # avoids copying v: f_d.(v_old + v_new) in two dots
-        if b.fbeta is not None:
-            fb_dot_v_old = b.mdot(b.fbeta, b.v)
-        elif b.nkv is not None:
-            fb_dot_v_old = m.beta_r * b.mdot(b.nkv, b.v)
+        vb_old = b.vb.take(st.contact.ia, axis=1)
+        dots_old = _power_dots(m, b, ph)
     np.multiply(b.f, b.dt_minv, out=b.tmp)
     b.v += b.tmp
-    b.v[0, -1] = (vx if one else vx[:, None, None]) if ph.sliding else 0.0
-    b.v[1, -1] = 0.0
-    b.v[2, -1] = vz if one else vz[:, None, None]
+    tv = b.top_v  # prescribed x/y velocities of the top face and the holder's vz: one assignment
     if one:
+        tv[0, 0, 0, 0] = vx if ph.sliding else 0.0
+        tv[2, 0, 0, 0] = vz
         b.vz[0] = vz
     else:
+        tv[0, :, 0, 0] = vx if ph.sliding else 0.0
+        tv[2, :, 0, 0] = vz
         b.vz = vz
+    b.v_top[...] = tv
     if ph.sliding:
-        h = 0.5 * m.dt
-        e = b.e
-        vz_sum = vz_old + vz
-        e["external"] += h * (-m.config.load_n * vz_sum + react_x * 2.0 * vx)
-        e["damping"] -= h * fz_hd * vz_sum
-        e["friction"] -= h * (_vdot if one else st.seg.dot)(st.fric, vb_old + b.vb[:, ia])
-        if ph.c_per_s > 0:
-            # dashpots between each node and the frame (vx, 0, vz_old): they dissipate c m |w|^2 (w = velocity
-            # relative to the frame, >= 0), the holder feeds them f_d . v_frame
-            fd_frame = 2.0 * (vx * b.msum(b.fdamp[0]) + vz_old * b.msum(b.fdamp[2]))
-            e["damping"] -= h * (fd_dot_v_old + b.mdot(b.fdamp, b.v) - fd_frame)
-            e["external"] += h * fd_frame
-        if b.fbeta is not None:
-            e["damping"] -= h * (fb_dot_v_old + b.mdot(b.fbeta, b.v))
-        elif b.nkv is not None:  # the Rayleigh stiffness part -beta K v(n-1/2) is beta * nkv
-            e["damping"] -= h * (fb_dot_v_old + m.beta_r * b.mdot(b.nkv, b.v))
+        _slide_energies(m, b, ph, st, vb_old, dots_old, (-fx_top, fz_hd, vz_old, vz, vx))
     np.multiply(b.v, m.dt, out=b.tmp)
     b.u += b.tmp
     c = st.contact
@@ -710,6 +708,45 @@ def _advance(m: _Model, b: _Batch, ph: _Phase, st: _StepOut) -> None:
         b.fz_sum[0], b.area_now[0], b.pen_energy[0] = st.fz, st.area, 0.5 * float(np.dot(c.kd_n, c.d_m))
     else:
         b.fz_sum, b.area_now, b.pen_energy = st.fz, st.area, 0.5 * st.seg.dot(c.kd_n, c.d_m)
+
+
+def _power_dots(m: _Model, b: _Batch, ph: _Phase) -> tuple:
+    """``f_d . v(n-1/2)`` and the stiffness-damping force's ``. v(n-1/2)`` (J/s) before the velocity update (the
+    dashpots' power over the step is ``f . (v_old + v_new) / 2``: two dots, no copy of v)."""
+    fd_dot = b.mdot(b.fdamp, b.v) if ph.c_per_s > 0 else 0.0
+    if b.fbeta is not None:
+        return fd_dot, b.mdot(b.fbeta, b.v)
+    if b.nkv is not None:
+        return fd_dot, m.beta_r * b.mdot(b.nkv, b.v)
+    return fd_dot, 0.0
+
+
+def _slide_energies(m: _Model, b: _Batch, ph: _Phase, st: _StepOut, vb_old, dots_old, holder) -> None:
+    """Energies (J) of the sliding step: external work, friction, dashpots and stiffness damping (trapezoidal in
+    the velocities ``vb_old`` / ``b.v`` before / after the update); ``holder``: ``(react_x N, fz_hd N, vz_old m/s,
+    vz m/s, vx m/s)``, the reaction in x, the holder dashpot force and the holder's velocities."""
+    react_x, fz_hd, vz_old, vz, vx = holder
+    fd_dot_v_old, fb_dot_v_old = dots_old
+    h = 0.5 * m.dt
+    e = b.e
+    vz_sum = vz_old + vz
+    e["external"] += h * (-m.config.load_n * vz_sum + react_x * 2.0 * vx)
+    e["damping"] -= h * fz_hd * vz_sum
+    e["friction"] -= h * (_vdot if b.one else st.seg.dot)(st.fric, vb_old + b.vb.take(st.contact.ia, axis=1))
+    if ph.c_per_s > 0:
+        # dashpots between each node and the frame (vx, 0, vz_old): they dissipate c m |w|^2 (w = velocity
+        # relative to the frame, >= 0), the holder feeds them f_d . v_frame
+        if b.one:
+            fdx, fdz = _add(b.fdamp_xz, 1).tolist()
+        else:
+            fdx, fdz = b.msum(b.fdamp[0]), b.msum(b.fdamp[2])
+        fd_frame = 2.0 * (vx * fdx + vz_old * fdz)
+        e["damping"] -= h * (fd_dot_v_old + b.mdot(b.fdamp, b.v) - fd_frame)
+        e["external"] += h * fd_frame
+    if b.fbeta is not None:
+        e["damping"] -= h * (fb_dot_v_old + b.mdot(b.fbeta, b.v))
+    elif b.nkv is not None:  # the Rayleigh stiffness part -beta K v(n-1/2) is beta * nkv
+        e["damping"] -= h * (fb_dot_v_old + m.beta_r * b.mdot(b.nkv, b.v))
 
 
 def _vdot(a: np.ndarray, c: np.ndarray) -> float:
@@ -867,19 +904,19 @@ class _Output:
         r, ids, rec = i // self.every, b.rows, self.rec
         self.rec_t[r] = i * dt
         rec["x"][ids, r] = b.v_slide * i * dt
-        rec["ft"][ids, r] = -(sums[0] + sums[2])
+        rec["ft"][ids, r] = -(sums[0] + sums[3])
         rec["fn"][ids, r] = b.fz_sum
         rec["a"][ids, r] = b.area_now
-        rec["ff"][ids, r] = -sums[2]
+        rec["ff"][ids, r] = -sums[3]
         self.rec_nc[ids, r] = seg.counts()
         self.rec_ns[ids, r] = seg.count(st.stick)
-        n_sum = sums[5]
+        n_sum = sums[7]
         has_n = n_sum > 0.0
         rec["sl"][ids, r] = np.where(has_n, seg.dot(c.normal_n, st.s) / np.where(has_n, n_sum, 1.0), np.nan)
 
     def _record_one(self, b: _Batch, st: _StepOut, i: int) -> None:
         """:meth:`record` of a batch of one: the single run's scalar operations."""
-        c, fric = st.contact, st.fric
+        c, sums = st.contact, st.sums
         d = c.d_m
         if d.size:
             d_max = float(d.max())
@@ -889,14 +926,14 @@ class _Output:
             r, j, rec, dt = i // self.every, int(b.ids[0]), self.rec, self.m.dt
             self.rec_t[r] = i * dt
             rec["x"][j, r] = b.vx1 * i * dt
-            fx = _add(fric[0], None)
-            rec["ft"][j, r] = -float(_add(c.force_n[0], None) + fx)
+            fx = sums[3]
+            rec["ft"][j, r] = -float(sums[0] + fx)
             rec["fn"][j, r] = st.fz
             rec["a"][j, r] = st.area
             rec["ff"][j, r] = -float(fx)
             self.rec_nc[j, r] = c.ia.size
             self.rec_ns[j, r] = np.count_nonzero(st.stick)
-            n_sum = float(_add(c.normal_n, None))
+            n_sum = float(sums[7])
             rec["sl"][j, r] = float(np.dot(c.normal_n, st.s)) / n_sum if n_sum > 0.0 else np.nan
 
     def finish(self, b: _Batch) -> None:

@@ -100,6 +100,10 @@ class StructuredKernel:
         self.ue = np.zeros((24, self.n_cols))
         self._ue4 = self.ue.reshape(24, nz * b, ny + 1, nx + 1)
         self.fe = np.empty((24, self.n_cols))
+        n = self.n_slab  # per-corner views of the element buffers and the dummy columns, made once
+        self._ue_corners = [(self.ue[3 * c : 3 * c + 3, :n], o) for c, o in enumerate(self.offsets)]
+        self._fe_corners = [(self.fe[3 * c : 3 * c + 3, :n], o) for c, o in enumerate(self.offsets)]
+        self._dummies = (self._ue4[:, :, ny, :], self._ue4[:, :, :, nx])
         self.g = np.asarray(branch_g_pa, dtype=float)
         self.tau = np.asarray(branch_tau_s, dtype=float)
         self.k_dev = None if k_dev_unit is None else np.ascontiguousarray(k_dev_unit, dtype=float)
@@ -113,25 +117,27 @@ class StructuredKernel:
 
     def gather(self, u: np.ndarray) -> np.ndarray:
         """Element displacement array ``(24, n_cols)`` in the padded layout (dummy columns 0; the kernel's buffer)."""
-        ue = self.ue
         uf = u.reshape(3, self.n_nodes)
         n = self.n_slab
-        for c, o in enumerate(self.offsets):
-            ue[3 * c : 3 * c + 3, :n] = uf[:, o : o + n]
-        ue4 = self._ue4
-        ue4[:, :, self.mesh.ny, :] = 0.0  # dummy columns (j = ny, i = nx); the tail beyond n_slab
-        ue4[:, :, :, self.mesh.nx] = 0.0  # is such a column and stays 0 from the allocation
-        return ue
+        for dst, o in self._ue_corners:
+            dst[...] = uf[:, o : o + n]
+        for dummy in self._dummies:  # dummy columns (j = ny, i = nx); the tail beyond n_slab
+            dummy.fill(0.0)  # is such a column and stays 0 from the allocation
+        return self.ue
 
     def scatter(self, fe: np.ndarray, out: np.ndarray) -> np.ndarray:
         """Add element forces ``(24, n_cols)`` (padded layout, dummies 0) to the nodal array ``out`` (zeroed first)."""
         of = out.reshape(3, self.n_nodes)
         n = self.n_slab
-        of[:, :n] = fe[0:3, :n]  # corner 0 (offset 0) is assigned, the rest zeroed
+        corners = (
+            self._fe_corners if fe is self.fe else [(fe[3 * c : 3 * c + 3, :n], o) for c, o in enumerate(self.offsets)]
+        )
+        of[:, :n] = corners[0][0]  # corner 0 (offset 0) is assigned, the rest zeroed
         of[:, n:] = 0.0
-        for c in range(1, 8):
-            o = self.offsets[c]
-            of[:, o : o + n] += fe[3 * c : 3 * c + 3, :n]
+        add = np.add
+        for src, o in corners[1:]:
+            dst = of[:, o : o + n]
+            add(dst, src, out=dst)
         return out
 
     def real_columns(self, a: np.ndarray) -> np.ndarray:

@@ -173,11 +173,12 @@ class SurfaceBound:
         b = np.einsum("ib,ja,bac->ijc", _MONO_TO_BERNSTEIN, _MONO_TO_BERNSTEIN, c, optimize=True)
         self.zmax_m = b.reshape(16, -1).max(axis=0) + margin_m
         self._lo, self._inv, self._hi, self._nxc = lo[:, 0], inv[:, 0], hi[:, 0], nxc
+        self._hf = heightfield
 
     @classmethod
     def of(cls, pavement):
         """The bound of a Heightfield-like pavement (with the bicubic ``_cells``), else ``None`` (no pruning)."""
-        return cls(pavement) if hasattr(pavement, "_cells") and hasattr(pavement, "z_m") else None
+        return cls(pavement) if all(hasattr(pavement, a) for a in ("_cells", "z_m", "surface_at")) else None
 
     def cells(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
         """Padded cell index of points (m), computed exactly as ``Heightfield.evaluate`` does."""
@@ -195,3 +196,15 @@ class SurfaceBound:
     def candidates(self, x_m: np.ndarray, y_m: np.ndarray, z_m: np.ndarray) -> np.ndarray:
         """Indices of the points ``(x_m, y_m, z_m)`` (m, 1-D) below the surface bound of their cell."""
         return np.flatnonzero(z_m < self.zmax_m.take(self.cells(x_m, y_m)))
+
+    def surface_at_candidates(self, xyz_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The candidates among the points ``xyz_m`` ``(3, n)`` (m) and the surface there: ``(cand, zg)`` with
+        ``cand`` their indices (increasing) and ``zg`` ``(3, cand.size)`` the heights (m) and slopes
+        ``[z, dz/dx, dz/dy]``, bit for bit ``Heightfield.evaluate`` (one cell lookup serves the bound and the
+        evaluation)."""
+        cell, s, k = self._hf.locate(xyz_m[:2])
+        cand = (xyz_m[2] < self.zmax_m.take(cell)).nonzero()[0]
+        tu3 = np.empty((4, cand.size))
+        np.subtract(s.take(cand, axis=1), k.take(cand, axis=1), out=tu3[:2])
+        np.multiply(tu3[:2], 3.0, out=tu3[2:])
+        return cand, self._hf.surface_at(cell.take(cand), tu3)
