@@ -125,7 +125,9 @@ def _not_unrelated(top: dict) -> None:
     "0.0063: the generator's random section factors on the level and Sp are real unexplained section effects); "
     "second the texture model's x_speed member 'texture PCs 1-3' (p_adjusted 0.0063), which explains the section x "
     "speed effect (that one is not labelled unexplained). On 2026-11-28 (commit 1ab8588) the members were not "
-    "significant (p 0.91). Remove the mark when it passes.",
+    "significant (p 0.91). The same with commit 461cc35 (2026-11-29): its tests of texture columns beyond the "
+    "prediction model's terms do not apply, the chosen model here is pca@dft (no named terms; macro_Sdq x speed "
+    "between sites p 0.0076, p_adjusted 0.22). Remove the mark when it passes.",
 )
 def test_workflow_names_hidden_texture_x_speed(tmp_path):
     out = run_texture_campaign(tmp_path, "spectral", "hysteresis", 0.8)
@@ -147,8 +149,9 @@ def test_workflow_names_hidden_texture_x_speed(tmp_path):
     "(between sites, main and x speed, p_adjusted 0.0062 each), then the within-site functional form (0.013); "
     "macro_Sdq x speed p 0.048, p_adjusted 1. At the residual level "
     "(benchmarks/diagnosis_rates.py, 20 seeds of chips campaigns with this effect) the texture model is named in "
-    "0 / 20: [1, log micro_Sq, log MPD] explains 82-90 % of the log contact microtexture. Remove the mark when it "
-    "passes.",
+    "0 / 20: [1, log micro_Sq, log MPD] explains 82-90 % of the log contact microtexture. With commit 461cc35 "
+    "(2026-11-29; texture columns tested beyond the prediction terms, here ols2@dft's macro_Spk and micro_Ssk) the "
+    "same names and p-values; at the residual level with physics2's terms 11 / 20. Remove the mark when it passes.",
 )
 def test_workflow_names_the_texture_model_for_an_unheld_texture_measure(tmp_path):
     out = run_texture_campaign(tmp_path, "chips", "contact_micro", 2.0)

@@ -95,6 +95,9 @@ def test_an_interrupted_run_stops_the_cluster(tmp_path):
     while "pytest" not in (log.read_text() if log.exists() else ""):
         assert time.monotonic() < deadline, "the target never reached pytest"
         time.sleep(0.1)
+    # the stand-in writes its line before it starts `sleep`: give it time to get there, so that Ctrl-C reaches a
+    # running test (on a loaded machine, 2026-11-29, the signal once arrived in between and make ran for 30 s more)
+    time.sleep(1.0)
     os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the whole foreground process group
     assert proc.wait(timeout=30) != 0
     calls = log.read_text().splitlines()
