@@ -423,9 +423,8 @@ def surrogate_prior(results: Sequence[CalibrationResult]) -> dict:
     Both are properties of the FE slider's dynamics (how much faster its contact nodes slip than the holder
     moves, and the ratio of SN to mu at the effective slip speed) and vary little between sites of one campaign.
     The converged batch, not the surrogate's final state, is the measurement: a reference that converges in the
-    batch after its pilot never corrects d, so its final d is the start value 0, whatever the FE did (default
-    campaign, 2026-11-29: two of the three references; the prior's d was then 0 while the other sites' FE implied
-    about 2.5 / 1.8 / 0.6 km/h at 20 / 40 / 60 km/h, and 26 of 33 sites needed a second batch).
+    batch after its pilot never corrects d, so its final d is the start value 0, whatever the FE did
+    (docs/calibration.md, "Campaign prior").
     Raises ValueError when no result is usable (converged, model "slip", same calibration speeds).
     """
     usable = [
