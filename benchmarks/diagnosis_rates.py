@@ -2,7 +2,7 @@
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/diagnosis_rates.py --seeds 0-19 --jobs 2 \
         [--generators default,chips,spectral] [--kinds none,section_column,...] [--n-permutations 4999] \
-        [--n-boot 200] [--out results/diagnosis_rates] [--cache DIR]
+        [--n-boot 200] [--screen-only] [--beyond-size MU] [--out results/diagnosis_rates] [--cache DIR]
 
 Campaigns: tests/diagnosis_rate_campaigns.py (36 sites, 12 sections; the FE replaced by a per-site calibration of
 the exponential-decay law, the texture model by a physics2@dft-like least squares on log MPD and log micro Sq; the

@@ -11,6 +11,7 @@ from skidsim.criticism.extensions import (
     CovariateTerm,
     DrainageIFI,
     TemperatureShift,
+    TextureModelTerm,
     exp_curve,
     fit_exp_curves,
     ifi_speed_constant_kmh,
@@ -185,3 +186,41 @@ def test_recalibrate_temperature_recovers_reference_between_sites():
     after = predict_extended(TemperatureShift(), p, sc, cov, train)
     assert np.sqrt(np.mean((after - sc.rows["measured"]) ** 2)) < 2e-4
     assert np.sqrt(np.mean((sc.rows["before"] - sc.rows["measured"]) ** 2)) > 5e-3
+
+
+def _texture_model_scope(slope_of_site, level_of_site):
+    """A between-site scope of 12 sites at 20-70 km/h whose residual is ``level_i + slope_i (v - 45)`` (mu)."""
+    v = np.arange(20.0, 71.0, 10.0)
+    rows = [
+        (f"S{i}", f"C{i // 3}", float(x), 0.5, 0.5 + level_of_site[i] + slope_of_site[i] * (x - v.mean()))
+        for i in range(len(slope_of_site))
+        for x in v
+    ]
+    t = pd.DataFrame(rows, columns=["site", "section", "speed_kmh", "model", "measured"])
+    res = t.assign(level="between-site", kind="validation", residual=t["measured"] - t["model"])
+    return make_scope(res, "between-site")
+
+
+def test_a_texture_model_term_on_the_speed_slope_recovers_a_slope_linear_in_its_design():
+    """Residual speed slopes (mu per km/h) linear in the member's design, plus site levels that no design carries:
+    the slope form (an x_speed cause) recovers the slope coefficients to 1e-12, predicts every row's slope part
+    exactly and leaves each site's mean level alone; the level form fits site means and leaves the slopes."""
+    rng = np.random.default_rng(4)
+    Z = rng.normal(size=(12, 3))
+    b = np.array([2e-4, 1e-3, -5e-4, 3e-4])  # [b0, b] in mu per km/h
+    slope, level = np.c_[np.ones(12), Z] @ b, rng.normal(scale=0.02, size=12)
+    sc = _texture_model_scope(slope, level)
+    design = tuple(tuple(map(float, Z[i])) for i in range(12))
+    ext = TextureModelTerm("texture_model[x]", tuple(f"S{i}" for i in range(12)), design, on="slope")
+    train = np.ones(len(sc.sites), bool)
+    p = recalibrate(ext, sc, None, train)
+    np.testing.assert_allclose(p["beta"], b, rtol=0, atol=1e-12)
+    after = predict_extended(ext, p, sc, None, train)
+    lev = np.array([level[int(s[1:])] for s in sc.rows["site"]])
+    np.testing.assert_allclose(after - sc.rows["before"], sc.rows["measured"] - sc.rows["before"] - lev, atol=1e-12)
+    flat = TextureModelTerm("texture_model[x]", ext.sites, design)
+    after_flat = predict_extended(flat, recalibrate(flat, sc, None, train), sc, None, train)
+    d = after_flat - sc.rows["before"].to_numpy()
+    assert np.allclose(d.reshape(12, -1).std(axis=1), 0.0, atol=1e-12)  # a level per site, no slope
+    with pytest.raises(ConfigError):
+        TextureModelTerm("texture_model[x]", on="shape")

@@ -44,14 +44,14 @@ from .covariates import (
     site_covariates,
     texture_clusters,
 )
-from .extensions import ExtendedModel, apply_extension
+from .extensions import CovariateTerm, ExtendedModel, apply_extension
 from .fdr import adjust_pvalues, auto_permutations
 from .gain import baseline_gain, evaluate_extension, measure_gain
 from .inputs import DiagnosisInputs, read_workflow_inputs
 from .options import DiagnosisOptions
 from .report import write_outputs
 from .residuals import LEVELS, build_residuals
-from .screening import screen_candidates
+from .screening import column_beyond_lead, screen_candidates
 from .texture_candidate import is_texture_model, texture_model_term
 
 __all__ = [
@@ -104,6 +104,27 @@ class DiagnosisResult:
     added_variable: pd.DataFrame = field(default_factory=pd.DataFrame)  # site, covariate_adj, measured_adj
 
 
+def _beyond_lead_texture(top, residuals, cov, texture, lead, options) -> pd.DataFrame | None:
+    """The texture table for the extension of a texture column named between sites: the column replaced by its
+    part beyond the prediction model's terms (:func:`~skidsim.criticism.screening.column_beyond_lead`), which is
+    what the screening tested, at every site of the table; else the table as it is."""
+    if (
+        texture is None
+        or top.source != "texture"
+        or top.level != "between-site"
+        or top.dtype != "numeric"
+        or top.variable not in texture.columns
+    ):
+        return texture
+    z = column_beyond_lead(residuals, cov, top.variable, lead, options)
+    if z is None:
+        return texture
+    values = texture["site"].astype(str).map(z)
+    if values.isna().any():
+        return texture
+    return texture.assign(**{top.variable: values.to_numpy(float)})
+
+
 def diagnose(
     inputs: DiagnosisInputs, options: DiagnosisOptions | None = None, roles: CandidateRoles | None = None
 ) -> DiagnosisResult:
@@ -130,6 +151,8 @@ def diagnose(
         return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, pd.DataFrame())
     term = texture_model_term(top, res, sites, texture, pcs, inputs.prediction_features, roles, bin_kmh)
     model = apply_extension(top, sites, texture, speed_bin_kmh=bin_kmh, exclude=roles.exclude, texture_design=term)
+    if isinstance(model.extension, CovariateTerm) and model.fallback is None:  # not a physical extension (IFI, WLF)
+        texture = _beyond_lead_texture(top, res, cov, texture, inputs.prediction_features, options)
     if term is not None:  # the figures plot the residual against the member's first column (its standardised axis)
         cov = cov.join(pd.Series([r[0] for r in term.design], index=list(term.sites), name=top.variable))
     gain, preds = evaluate_extension(model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude)

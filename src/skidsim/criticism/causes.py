@@ -283,6 +283,18 @@ def _move(causes: list[Cause], c: Cause, to: int) -> None:
     causes.insert(to, c)
 
 
+def _texture_above_unexplained(causes: list[Cause], used: set) -> None:
+    """An unexplained section effect ranks below a texture cause that explains another section effect of its level
+    (``used``: the ids of the texture explanations rule 2 moved or found): the texture model, or the texture
+    measure, is then established as a misfit that clusters by section (e.g. the texture model explains the
+    section x speed effect), and the section effect it does not explain (the section means) stays listed, labelled
+    unexplained, right below it. The largest share of its own section effect first. In place."""
+    for S in [c for c in causes if c.section_id and c.significant and c.label == SECTION_UNEXPLAINED]:
+        expl = [c for c in causes if id(c) in used and c.level == S.level and _pos(causes, c) > _pos(causes, S)]
+        if expl:
+            _move(causes, max(expl, key=lambda c: c.section_share), _pos(causes, S))
+
+
 def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> list[Cause]:
     """The naming rule of a section effect (docs/model-criticism.md, section 2, "Naming a section effect").
 
@@ -300,7 +312,8 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
       ``main``; the column itself may be significant at another level or kind) moves right above S (the one with
       the largest share);
     * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
-      ``section (unexplained)``.
+      ``section (unexplained)``; it then ranks below a texture explanation of another section effect of its level
+      (:func:`_texture_above_unexplained`).
 
     Then a texture-model candidate that explains no significant section effect goes below every other significant
     cause (it is evidence about the texture model, not the first explanation of a site-level residual)."""
@@ -328,6 +341,7 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
         k = _pos(causes, S)
         if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
             causes[k] = replace(S, label=SECTION_UNEXPLAINED)
+    _texture_above_unexplained(causes, used)
     tm = [c for c in causes if c.significant and c.source == "texture_model" and id(c) not in used]
     others = [c for c in causes if c.significant and c.source != "texture_model"]
     if tm and others:

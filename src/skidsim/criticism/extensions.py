@@ -251,17 +251,25 @@ class CovariateTerm:
 @dataclass(frozen=True)
 class TextureModelTerm:
     """The richer texture model of a texture-model cause (:mod:`skidsim.criticism.texture_candidate`): between
-    sites the prediction's level is corrected by a linear model of the residual site means on the member's
-    design, ``after = before + b0 + Z_i b`` (least squares on the training sites; ``Z`` the member's 3 columns,
-    e.g. ``[z, z^2, z^3]`` of a texture axis, each standardised over the sites). Within a site (held-out speeds)
-    it changes nothing: the texture model does not enter the calibrated simulation. ``sites`` and ``design``
-    (one row of 3 values per site) hold the design, ``name`` the cause's variable, ``words`` what it means."""
+    sites the prediction is corrected by a linear model on the member's design ``Z`` (its 3 columns, e.g.
+    ``[z, z^2, z^3]`` of a texture axis, each standardised over the sites), least squares on the training sites'
+    residual rows: ``on="level"`` (a ``main`` cause) ``after = before + b0 + Z_i b``; ``on="slope"`` (an ``x_speed``
+    cause, the speed shape) ``after = before + (b0 + Z_i b)(v - v_mean,i)`` (km/h; v_mean,i the mean of site i's
+    evaluated speeds), which leaves the site's mean level alone, as :class:`CovariateTerm` does. Within a site
+    (held-out speeds) it changes nothing: the texture model does not enter the calibrated simulation. ``sites`` and
+    ``design`` (one row of 3 values per site) hold the design, ``name`` the cause's variable, ``words`` what it
+    means."""
 
     name: str
     sites: tuple = ()
     design: tuple = ()
     words: str = ""
     physical: bool = False
+    on: str = "level"
+
+    def __post_init__(self):
+        if self.on not in ("level", "slope"):
+            raise ConfigError(f"TextureModelTerm.on must be 'level' or 'slope', got {self.on!r}")
 
     def design_of(self, sites) -> np.ndarray:
         """The design rows (len(sites), q) of ``sites``."""

@@ -454,14 +454,26 @@ def _recalibrate_covariate(ext: CovariateTerm, scope: Scope, cov: pd.DataFrame, 
     return {"numeric": True, "z_mean": float(z[train].mean()), "beta": beta.tolist()}
 
 
+def _texture_model_rows(ext: TextureModelTerm, scope: Scope) -> np.ndarray:
+    """Per row of the scope, the texture-model term's regressors: ``[1, Z_i]`` (level) or ``[1, Z_i] (v -
+    v_mean,i)`` (slope, km/h)."""
+    X = np.c_[np.ones(len(scope.sites)), ext.design_of(scope.sites)][scope.row_site]
+    return X if ext.on == "level" else X * centred_speed(scope)[:, None]
+
+
 def _recalibrate_texture_model(ext: TextureModelTerm, scope: Scope, train: np.ndarray) -> dict:
-    """Least squares of the training sites' mean residual (mu) on ``[1, Z]`` (between sites); nothing within a
-    site."""
+    """Between sites: least squares of the training sites' mean residual (mu) on ``[1, Z]`` (level), or of their
+    residual rows on ``[1, Z] (v - v_mean,i)`` (slope); nothing within a site."""
     if scope.name != "held_out_sites":
         return {"beta": None}
     resid = scope.rows["measured"].to_numpy(float) - scope.rows["before"].to_numpy(float)
-    X = np.c_[np.ones(len(scope.sites)), ext.design_of(scope.sites)]
-    beta, *_ = np.linalg.lstsq(X[train], site_target("level", scope, resid, centred_speed(scope))[train], rcond=None)
+    if ext.on == "level":
+        X = np.c_[np.ones(len(scope.sites)), ext.design_of(scope.sites)]
+        y = site_target("level", scope, resid, centred_speed(scope))
+        beta, *_ = np.linalg.lstsq(X[train], y[train], rcond=None)
+    else:
+        rows_tr = train[scope.row_site]
+        beta, *_ = np.linalg.lstsq(_texture_model_rows(ext, scope)[rows_tr], resid[rows_tr], rcond=None)
     return {"beta": beta.tolist()}
 
 
@@ -527,8 +539,7 @@ def predict_extended(ext, params: dict, scope: Scope, cov: pd.DataFrame, train: 
         before = scope.rows["before"].to_numpy(float)
         if params.get("beta") is None:
             return before.copy()
-        X = np.c_[np.ones(len(scope.sites)), ext.design_of(scope.sites)]
-        return before + (X @ np.asarray(params["beta"]))[scope.row_site]
+        return before + _texture_model_rows(ext, scope) @ np.asarray(params["beta"])
     if isinstance(ext, SharedShape):
         return scope.rows["before"].to_numpy(float) + np.interp(
             scope.rows["speed_kmh"].to_numpy(float), params["speed_kmh"], params["h"]

@@ -451,6 +451,33 @@ def _members(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None, l
     return texture_members(ctx.data.site_ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead)
 
 
+def lead_basis(data: LevelData, cov: pd.DataFrame, lead) -> np.ndarray | None:
+    """``[1, lead columns]`` (n_sites, 1 + k) of the between-site sites of ``data``: the prediction model's terms
+    ``lead`` (:func:`~skidsim.criticism.adjustment.lead_design`); None when it names none or they are missing from
+    ``cov``."""
+    L = lead_design(cov.loc[data.site_ids], lead) if lead else None
+    return None if L is None else np.c_[np.ones(len(data.site_ids)), L]
+
+
+def column_beyond_lead(
+    residuals: pd.DataFrame, cov: pd.DataFrame, column: str, lead, options: DiagnosisOptions
+) -> pd.Series | None:
+    """The part of the numeric column ``column`` of ``cov`` (one row per site) orthogonal to :func:`lead_basis` over
+    the between-site sites (index: those sites; the column's units): what a texture column named between sites
+    adds beyond the prediction model's terms, the column its extension is fitted on (the residual has lost the
+    rest; :func:`texture_beyond_lead`). None without between-site residuals or a lead basis."""
+    data = level_data(residuals, options).get("between-site")
+    if data is None or column not in cov.columns:
+        return None
+    F = lead_basis(data, cov, lead)
+    if F is None:
+        return None
+    x = pd.to_numeric(cov.loc[data.site_ids, column], errors="coerce").to_numpy(float)
+    if not np.isfinite(x).all():
+        return None
+    return pd.Series(residualise(x[:, None], F)[:, 0], index=list(data.site_ids))
+
+
 def texture_beyond_lead(ctx: LevelContext, cands: CandidateSet, lead) -> None:
     """Between sites, test each texture column for what it adds beyond the prediction model's texture terms
     ``lead`` (e.g. ``log(profile_MPD)``, ``log(micro_Sq)``): its basis becomes the unit part of the centred column
@@ -459,12 +486,11 @@ def texture_beyond_lead(ctx: LevelContext, cands: CandidateSet, lead) -> None:
     effect; the raw column correlates with what is left only through that part (chips: macro_Sdq has R^2 0.88 on
     the two terms, so its raw basis catches about 12 % of its own effect's residual). Within sites (the residual
     of the calibrated simulation, which no texture model enters) and without lead terms the bases stay."""
-    if ctx.data.level != "between-site" or not lead:
+    if ctx.data.level != "between-site":
         return
-    L = lead_design(cands.covariates.loc[ctx.data.site_ids], lead)
-    if L is None:
+    F = lead_basis(ctx.data, cands.covariates, lead)
+    if F is None:
         return
-    F = np.c_[np.ones(ctx.n), L]
     for c, (source, dtype) in ctx.info.items():
         if source != "texture" or dtype != "numeric" or c not in ctx.bases or ctx.bases[c].shape[1] != 1:
             continue

@@ -234,6 +234,11 @@ def texture_model_term(cause, residuals, sites, texture_wide, pcs, lead=(), role
     m = next((m for m in members if m.variable == cause.variable), None)
     if m is None:
         return None
+    words = m.speed_words if cause.kind == "x_speed" else m.words
     return TextureModelTerm(
-        cause.variable, tuple(str(s) for s in ids), tuple(tuple(map(float, r)) for r in m.design), m.words
+        cause.variable,
+        tuple(str(s) for s in ids),
+        tuple(tuple(map(float, r)) for r in m.design),
+        words,
+        on="slope" if cause.kind == "x_speed" else "level",
     )
