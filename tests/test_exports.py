@@ -13,11 +13,13 @@ from skidsim.errors import InputError
 from skidsim.exports import (
     CalculixError,
     hex_volumes,
+    is_watertight,
     parse_dat,
     pavement_hex_mesh,
     pavement_surface_mesh,
     run_calculix,
     slider_placement,
+    stl_bytes,
     triangulated_volume_m3,
     write_gmsh,
     write_inp,
@@ -64,6 +66,26 @@ def test_stl_watertight_volume_bounds(tmp_path):
     np.testing.assert_allclose(lo, [3.0, -2.0, hf.z_bottom_m * 1e3], atol=1e-4)
     np.testing.assert_allclose(hi, [23.0, 10.0, hf.max_height_m * 1e3], atol=1e-4)
     assert [q.name for q in tmp_path.iterdir()] == ["pave.stl"]
+
+
+def test_stl_bytes_are_trimeshs(tmp_path):
+    """The STL writer gives the bytes trimesh's exporter gives for the same mesh (it replaced trimesh in the
+    reconstruct job to save its import); a degenerate face gets a zero normal in both; open meshes are not
+    watertight in both."""
+    trimesh = pytest.importorskip("trimesh")
+    for hf, unit in ((_patch(20.0, 12.0, origin=(0.003, -0.002)), 1e3), (_patch(7.0, 5.0, seed=3), 1.0)):
+        v, f = pavement_surface_mesh(hf)
+        assert stl_bytes(v * unit, f) == trimesh.Trimesh(vertices=v * unit, faces=f, process=False).export(
+            file_type="stl"
+        )
+        assert is_watertight(f) and trimesh.Trimesh(vertices=v, faces=f, process=False).is_watertight
+        assert not is_watertight(f[1:]) and not trimesh.Trimesh(vertices=v, faces=f[1:], process=False).is_watertight
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [2.0, 0.0, 0.0]])
+    f = np.array([[0, 1, 2], [0, 1, 3]])  # the second face is degenerate (collinear corners)
+    assert stl_bytes(v, f) == trimesh.Trimesh(vertices=v, faces=f, process=False).export(file_type="stl")
+    hf = _patch(6.0, 4.0, h_mm=1.0)
+    v, f = pavement_surface_mesh(hf)
+    assert write_stl(hf, tmp_path / "p.stl").read_bytes() == stl_bytes(v * 1e3, f)  # mm by default
 
 
 def test_surface_mesh_in_memory_is_closed_and_outward():

@@ -39,7 +39,6 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 
 from .atomic import atomic_path
 from .errors import ConfigError, InputError
@@ -621,6 +620,8 @@ def pavement_strip(
             got=f"{int(bad.sum())} NaN, first at row {i0 + r}, col {j0 + c}",
         )
     if sig > 0:
+        from scipy import ndimage  # here: the calibrate and validate_speeds jobs load Heightfields, never smooth
+
         win = ndimage.gaussian_filter(win, sigma=(sig / dy, sig / dx), mode="reflect", truncate=4.0)
     z_mm = resample_area(win, dx, dy, xn - j0 * dx, yn - i0 * dy, hx, hy)
     xl = hx * np.arange(nx_cells + 1)

@@ -13,6 +13,7 @@ heights in mm, float64, with their spacings in mm).
 from __future__ import annotations
 
 import importlib
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -113,12 +114,17 @@ def save_surfaces(path: str | Path, surfaces: dict[str, Surface]) -> None:
             np.savez(fh, **arrays)
 
 
-def load_surfaces(path: str | Path) -> dict[str, Surface]:
-    """Inverse of :func:`save_surfaces`: ``{name: Surface}`` (heights mm, spacings mm)."""
+def load_surfaces(path: str | Path, names: Sequence[str] | None = None) -> dict[str, Surface]:
+    """Inverse of :func:`save_surfaces`: ``{name: Surface}`` (heights mm, spacings mm); ``names``: only these
+    (each array of the file is read on access, so the others cost nothing), a missing one raises KeyError."""
     out = {}
     with np.load(path) as z:
-        names = sorted({k.split("__")[0] for k in z.files})
-        for n in names:
+        stored = sorted({k.split("__")[0] for k in z.files})
+        if names is not None:
+            missing = [n for n in names if n not in stored]
+            if missing:
+                raise KeyError(f"{path}: no surface {', '.join(map(repr, missing))} (stored: {', '.join(stored)})")
+        for n in stored if names is None else names:
             dx, dy = z[f"{n}__spacing_mm"]
             out[n] = Surface(z[f"{n}__heights_mm"], float(dx), float(dy), name=n)
     return out

@@ -7,5 +7,5 @@ from skidsim.scans import load_surfaces, read_scan
 log = setup_logging(snakemake.log[0])
 raw = read_scan(snakemake.input.scan)
 clean = load_surfaces(snakemake.input.surfaces)["clean"]
-bands = load_surfaces(snakemake.input.bands)
+bands = load_surfaces(snakemake.input.bands, names=["macro", "micro"])  # not the raw band: the figure shows the scan
 plot_figure7(raw, clean, bands["macro"], bands["micro"], snakemake.output.figure)

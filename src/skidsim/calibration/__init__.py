@@ -14,9 +14,10 @@ into one, :func:`site_simulator`)::
 
 The package, one idea per module: ``options`` (the settings of each stage, the study's constants), ``cache`` (the
 FE evaluation callback and the per-site cache), ``measured`` (measured DFT values at a speed), ``law_fit`` (fitting
-the law without FE), ``result`` (:class:`CalibrationResult`), ``study``, ``joint``, ``site`` (one site as the
-workflow runs it), ``tables`` (validation and the campaign's tables), ``identifiability`` (what a trace determines of
-the calibrated law, :func:`assess`; imported on first use, it needs scipy.stats).
+the law without FE), ``brent`` (its bounded Brent step: scipy's algorithm, without importing scipy), ``result``
+(:class:`CalibrationResult`), ``study``, ``joint``, ``site`` (one site as the workflow runs it), ``tables``
+(validation and the campaign's tables), ``identifiability`` (what a trace determines of the calibrated law,
+:func:`assess`; imported on first use, it needs scipy.special).
 
 Conventions that change numbers (also in ``docs/calibration.md``):
 
@@ -58,8 +59,8 @@ from skidsim.calibration.tables import (
     validation_table,
 )
 
-#: names of .identifiability imported on first use (PEP 562): it loads scipy.stats, which the workflow's parse
-#: (prior_reference_sites) and the calibrate / validate_speeds jobs never need
+#: names of .identifiability imported on first use (PEP 562): it loads scipy.special, which the workflow's parse
+#: (prior_reference_sites) and the calibrate / validate_speeds jobs never need (they import no scipy at all)
 _IDENTIFIABILITY_NAMES = (
     "assess",
     "FLAGS",

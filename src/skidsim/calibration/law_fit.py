@@ -11,8 +11,8 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
+from skidsim.calibration.brent import minimize_bounded
 from skidsim.calibration.options import DEFAULT_BOUNDS, PARAMS
 from skidsim.friction import KMH_PER_MS, ExponentialDecay
 
@@ -95,7 +95,8 @@ def fit_exponential_decay(
     speeds_kmh: km/h; ``a`` (default 0) and ``b`` (default 1) per point model the FE response
     ``SN = a + b mu``. Variable projection: for fixed alpha the model is linear in (mu_k, mu_s) and the
     box-constrained 2-unknown problem is solved exactly (KKT enumeration: interior, four edges); alpha (s/m)
-    is searched on a grid of ``n_alpha_grid`` values over its bounds and refined with bounded Brent between
+    is searched on a grid of ``n_alpha_grid`` values over its bounds and refined with bounded Brent
+    (:func:`skidsim.calibration.brent.minimize_bounded`, scipy's ``minimize_scalar(method="bounded")``) between
     the neighbours of the best grid value. Handles non-convex or non-monotone data (the best law within the
     bounds). Where the data do not identify all three parameters (a flat curve), the first best grid value
     wins: the fitted curve is unique, the parameters are not.
@@ -127,14 +128,9 @@ def fit_exponential_decay(
     best_alpha, best_sse = float(grid[i]), float(sse[i])
     left, right = float(grid[max(i - 1, 0)]), float(grid[min(i + 1, len(grid) - 1)])
     if right > left:
-        res = minimize_scalar(
-            lambda al: float(solve(al)[1][0]),
-            bounds=(left, right),
-            method="bounded",
-            options={"xatol": 1e-12, "maxiter": 200},
-        )
-        if res.success and float(res.fun) < best_sse:
-            best_alpha, best_sse = float(res.x), float(res.fun)
+        x, fun, ok = minimize_bounded(lambda al: float(solve(al)[1][0]), left, right, xatol=1e-12, maxiter=200)
+        if ok and fun < best_sse:
+            best_alpha, best_sse = x, fun
     p, sse1 = solve(best_alpha)
     return ExponentialDecay(mu_s=float(p[0, 1]), mu_k=float(p[0, 0]), alpha=best_alpha), float(sse1[0])
 

@@ -13,18 +13,6 @@ carry a hidden texture-and-speed effect on top (``{"friction": {"hidden_effect":
 :func:`.friction_models.hidden_factor`), absent by default.
 """
 
-from .campaign import (
-    GENERATORS,
-    SiteData,
-    design_campaign,
-    generate_site,
-    generator_config,
-    site_mu,
-    texture_measures,
-    write_campaign,
-    write_site,
-)
-
 __all__ = [
     "GENERATORS",
     "SiteData",
@@ -36,3 +24,14 @@ __all__ = [
     "write_campaign",
     "write_site",
 ]
+
+
+def __getattr__(name: str):
+    """The names of :mod:`.campaign`, imported on first use (PEP 562): it loads scipy.signal and scipy.spatial
+    (the ``spectral`` and ``chips`` generators), which ``from skidsim.generators import default`` (the embedded
+    campaign's generator, every synth_site job and the workflow's parse) never needs."""
+    if name in __all__:
+        from . import campaign
+
+        return getattr(campaign, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

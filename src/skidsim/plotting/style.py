@@ -1,14 +1,12 @@
-"""One figure style for the whole project."""
+"""One figure style for the whole project.
+
+Figures are drawn on matplotlib's Agg canvas without pyplot (no figure manager, no global figure registry),
+and matplotlib is imported on the first figure: a module that only defines figures costs nothing to import."""
 
 from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
-
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 
 from skidsim.atomic import atomic_path
 
@@ -39,17 +37,22 @@ COLORS = {
 
 @contextmanager
 def figure(path: str | Path | None = None, *, nrows: int = 1, ncols: int = 1, figsize=(6.0, 4.0), **kw):
-    """Context manager yielding ``(fig, axes)``; on exit saves to ``path`` (PNG) atomically and closes.
+    """Context manager yielding ``(fig, axes)`` (``**kw`` go to ``Figure.subplots``: squeeze, sharex,
+    gridspec_kw, ...); on exit saves to ``path`` (PNG) atomically.
 
-    The file is written through :func:`skidsim.atomic.atomic_path`, so a failed figure leaves nothing behind.
+    The file is written through :func:`skidsim.atomic.atomic_path`, so a failed figure leaves nothing behind. The
+    figure belongs to no pyplot registry: there is nothing to close, it is freed with its last reference.
     """
-    with plt.rc_context(RC):
-        fig, axes = plt.subplots(nrows, ncols, figsize=figsize, **kw)
-        try:
-            yield fig, axes
-            if path is not None:
-                fig.tight_layout()
-                with atomic_path(path, suffix=".png") as tmp:
-                    fig.savefig(tmp, format="png")
-        finally:
-            plt.close(fig)
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=figsize)
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(nrows, ncols, **kw)
+        yield fig, axes
+        if path is not None:
+            fig.tight_layout()
+            with atomic_path(path, suffix=".png") as tmp:
+                fig.savefig(tmp, format="png")

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from skidsim.surface import Surface
 
 from .style import COLORS, figure
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 def _image(ax, s: Surface, title: str, max_px: int = 600, detail_mm: float | None = None):
@@ -83,6 +86,8 @@ def plot_campaign_distributions(
     bands: tuple[str, ...] = ("macro", "micro"),
 ) -> None:
     """Histograms over sites of selected parameters, one panel per parameter, one colour per band."""
+    import pandas as pd
+
     params = [p for p in parameters if any(f"{b}_{p}" in campaign_wide.columns for b in bands)]
     if not params:
         raise ValueError(f"plot_campaign_distributions: none of {parameters} found for bands {bands}")

@@ -4,16 +4,46 @@ profiled sum of squares over each calibration bound, its chi-square cut, open en
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.optimize import minimize_scalar
-from scipy.stats import chi2
 
+from skidsim.calibration.brent import minimize_bounded
 from skidsim.calibration.identifiability.mapping import SurrogateMap
 from skidsim.calibration.law_fit import box_ls2_many, fit_exponential_decay
 from skidsim.calibration.options import PARAMS
 from skidsim.friction import KMH_PER_MS
+
+#: chi2_ppf at the levels a record uses, as scipy gives them (tests/test_calibration_brent.py checks them against
+#: scipy.stats.chi2.ppf): the default confidence needs no scipy at all
+_CHI2_PPF = {
+    (0.9, 1): 2.705543454095404,
+    (0.9, 3): 6.251388631170325,
+    (0.95, 1): 3.841458820694124,
+    (0.95, 3): 7.814727903251179,
+    (0.99, 1): 6.6348966010212145,
+    (0.99, 3): 11.344866730144373,
+}
+
+
+def chi2_ppf(q: float, df: int) -> float:
+    """Quantile at ``q`` of the chi-squared distribution with ``df`` degrees of freedom: the number
+    ``scipy.stats.chi2.ppf(q, df)`` gives, computed as it does (``2 gammaincinv(df / 2, q)``; 0 at q = 0, inf at
+    q = 1, NaN outside [0, 1]) without importing scipy.stats (0.6 s, the largest import of an identifiability job);
+    the common levels come from a table (:data:`_CHI2_PPF`) without importing scipy.special either."""
+    q = float(q)
+    if (q, df) in _CHI2_PPF:
+        return _CHI2_PPF[(q, df)]
+    if q == 0.0:
+        return 0.0
+    if q == 1.0:
+        return math.inf
+    if not 0.0 < q < 1.0:
+        return math.nan
+    from scipy.special import gammaincinv
+
+    return float(2 * gammaincinv(df / 2, q))
 
 
 def _profile_sse(
@@ -66,14 +96,11 @@ def _profile_sse(
         best = float(sse[i])
         left, right = float(alphas[max(i - 1, 0)]), float(alphas[min(i + 1, alphas.size - 1)])
         if right > left:  # refine alpha between the grid neighbours (the profile is sharp when the rest is pinned)
-            res = minimize_scalar(
-                lambda al, c=c: float(sse_at(float(c), *cols(al))[0]),
-                bounds=(left, right),
-                method="bounded",
-                options={"xatol": 1e-10},
+            _, fun, ok = minimize_bounded(
+                lambda al, c=c: float(sse_at(float(c), *cols(al))[0]), left, right, xatol=1e-10
             )
-            if res.success and float(res.fun) < best:
-                best = float(res.fun)
+            if ok and fun < best:
+                best = fun
         out[k] = best
     return out
 
@@ -131,7 +158,7 @@ def profile_intervals(
     v = np.asarray(v_kmh, dtype=float)
     a, b, s = mapping.terms(v)
     z = np.asarray(y, dtype=float) - a
-    crit = float(chi2.ppf(confidence, 1))
+    crit = chi2_ppf(confidence, 1)
     alphas = np.linspace(float(bounds["alpha"][0]), float(bounds["alpha"][1]), int(alpha_points))
     profiles = {}
     for p in PARAMS:

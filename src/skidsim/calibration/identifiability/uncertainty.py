@@ -10,10 +10,9 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.stats import chi2
 
 from skidsim.calibration.identifiability.mapping import SurrogateMap, sse_of
-from skidsim.calibration.identifiability.profile import profile_intervals
+from skidsim.calibration.identifiability.profile import chi2_ppf, profile_intervals
 from skidsim.calibration.options import PARAMS, IdentifiabilityOptions
 from skidsim.friction import KMH_PER_MS, ExponentialDecay
 
@@ -87,7 +86,7 @@ def site_uncertainty(
     """Standard errors, profile-likelihood intervals, eigen-directions and curve combinations of the law at noise
     ``sigma_eff^2 = max(sigma^2, s_resid^2) (1 + rho) / (1 - rho)`` (see the package :mod:`..identifiability`;
     needs sigma > 0)."""
-    z = float(math.sqrt(chi2.ppf(opt.confidence, 1)))
+    z = float(math.sqrt(chi2_ppf(opt.confidence, 1)))
     n = fam["n"]
     s_resid = math.sqrt(fam["sse_w"] / max(n - 3, 1))
     sigma_eff = math.sqrt(max(sigma**2, s_resid**2) * fam["inflation"])
@@ -123,7 +122,7 @@ def site_uncertainty(
         "condition_number": loc["condition_number"],
         "cov": {p: dict(zip(PARAMS, map(float, loc["cov"][i]))) for i, p in enumerate(PARAMS)},
         "joint_deviance_of_law": float(joint),
-        "law_in_joint_region": bool(joint <= chi2.ppf(opt.confidence, 3)),
+        "law_in_joint_region": bool(joint <= chi2_ppf(opt.confidence, 3)),
         "profiles": {p: {"grid": prof["params"][p]["grid"], "deviance": prof["params"][p]["deviance"]} for p in PARAMS},
     }
 
