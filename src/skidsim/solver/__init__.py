@@ -8,11 +8,34 @@ Public API::
 See docs/solver.md for the model, its verification and the presets.
 """
 
-from skidsim.solver.config import SolverConfig
-from skidsim.solver.explicit import material_from_config, max_frequency_power_iteration, simulate, simulate_batch
-from skidsim.solver.material import RubberMaterial
-from skidsim.solver.results import ENERGY_KEYS, SimulationResult, write_trace_parquet
-from skidsim.solver.surfaces import FlatPlane, RandomTexture, SinusoidalSurface, TiltedPlane
+import importlib
+
+#: public name -> the submodule that defines it; loaded on first use (PEP 562), so that ``SolverConfig`` alone (the
+#: reconstruction's and the configuration's need) does not load the solver loop and pandas.
+_WHERE = {
+    "SolverConfig": "config",
+    "material_from_config": "explicit",
+    "max_frequency_power_iteration": "explicit",
+    "simulate": "explicit",
+    "simulate_batch": "explicit",
+    "RubberMaterial": "material",
+    "ENERGY_KEYS": "results",
+    "SimulationResult": "results",
+    "write_trace_parquet": "results",
+    "FlatPlane": "surfaces",
+    "RandomTexture": "surfaces",
+    "SinusoidalSurface": "surfaces",
+    "TiltedPlane": "surfaces",
+}
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(importlib.import_module(f"skidsim.solver.{_WHERE[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'skidsim.solver' has no attribute {name!r}")
+
 
 __all__ = [
     "SolverConfig",
