@@ -24,6 +24,21 @@ and writes the before/after figure of docs/texture.md.
 the same scan without speckle (same tilt, dropouts and codes): replaced share, speckle recall, genuine points
 replaced, and the height parameters and MPD of ``characterise`` (error against the speckle-free scan).
 
+    .venv/bin/python benchmarks/bench_texture.py --old /tmp/skidsim-old [--scan synthetic|site:E1-1|binder:67|FILE.x3p]
+
+``--old PATH`` compares the texture stage of another checkout (``git worktree add /tmp/skidsim-old HEAD``: its
+``src/skidsim/texture`` is imported as a separate package, the rest of skidsim from this tree) with this tree's on
+the same scan, in the same process: per workflow step (despeckle: ``despeckle_detail`` + ``scan_quality`` +
+``fill_invalid``; separate_bands; mpd; texture_parameters: ``areal_parameters`` on raw, macro and micro, one
+thread) the CPU seconds of each, old and new alternating after one untimed run of each (imports, memoised
+tables), median of ``--compare-repeats`` (3), the ratio new/old, and every number of the steps' outputs compared
+(each parameter of the three bands, the MPD, its SD, counts and segment depths, the scan-quality measures, the
+despeckled and band heights): identical, or the largest relative difference. ``--scan`` picks the scan:
+``synthetic`` (below, the default), ``site:NAME`` (a site of the embedded synthetic campaign as its scanner writes
+it: 0.01 mm integer codes, tilt, dropouts, speckle), ``binder:PCT`` (the flat-binder scan of
+tests/test_texture_despeckle.py at that binder share: 0.01 mm codes, 0.5 % dropouts, 0.05 % spikes) or an X3P or
+text scan file. ``--compare-only`` skips the rest.
+
 Timings on a shared machine are disturbed by other load: report them with the load average printed here.
 """
 
@@ -75,6 +90,186 @@ def synthetic_scan(rows: int, cols: int, seed: int = 0) -> Surface:
     return Surface(z, 0.05, 0.05, name="bench")
 
 
+def site_scan(site: str) -> Surface:
+    """A site of the embedded synthetic campaign (default config) as its scanner writes it (0.01 mm codes, tilt,
+    dropouts, speckle), with the X3P metadata the despeckle reads (integer codes, Z increment)."""
+    from skidsim.generators import default as syn
+
+    c = syn.resolve_config(None)
+    design = syn.design_campaign(c)
+    row = design[design.site == site].iloc[0].to_dict()
+    heights, _ = syn.synthesize_surface(row, c)
+    dx = float(c["spacing_mm"])
+    scan = syn._scanner(np.random.default_rng(syn._site_seed(c["seed"], site).spawn(4)[2]), heights, c, dx)
+    meta = {"x3p_dtype": "I", "z_increment_mm": float(c["z_quantum_mm"])}
+    return Surface(scan, dx, dx, name=site, meta=meta)
+
+
+def binder_scan(pct: float, rows: int, cols: int) -> Surface:
+    """The flat-binder scan of tests/test_texture_despeckle.py (``pct`` % binder at one 0.01 mm code), with 0.5 %
+    dropouts and 0.05 % spikes of 3-5 mm."""
+    fb = _flat_binder_module()
+    h = fb.flat_binder_scan(pct / 100.0, seed=7, shape=(rows, cols), dropout_share=0.005)
+    hs, _ = fb.inject_spikes(h, seed=107)
+    return Surface(hs, 0.05, 0.05, name=f"binder {pct:g} %")
+
+
+def _flat_binder_module():
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "flat_binder", Path(__file__).resolve().parents[1] / "tests" / "test_texture_despeckle.py"
+    )
+    fb = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fb)
+    return fb
+
+
+def pick_scan(spec: str, rows: int, cols: int) -> Surface:
+    """``--scan``: synthetic, site:NAME, binder:PCT or a scan file."""
+    if spec == "synthetic":
+        return synthetic_scan(rows, cols)
+    if spec.startswith("site:"):
+        return site_scan(spec[5:])
+    if spec.startswith("binder:"):
+        return binder_scan(float(spec[7:]), rows, cols)
+    from skidsim.scans import read_scan
+
+    return read_scan(spec)
+
+
+def load_texture_package(root: str, name: str = "_old_texture"):
+    """``ROOT/src/skidsim/texture`` of another checkout as the package ``name`` (its relative imports stay inside
+    it; ``skidsim.surface`` and the other absolute imports come from this tree)."""
+    import importlib
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    pkg = Path(root) / "src" / "skidsim" / "texture"
+    if not (pkg / "__init__.py").is_file():
+        raise SystemExit(f"--old {root}: no src/skidsim/texture in it (a checkout: git worktree add {root} HEAD)")
+    spec = importlib.util.spec_from_file_location(name, pkg / "__init__.py", submodule_search_locations=[str(pkg)])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod, importlib.import_module(f"{name}.quality")
+
+
+def texture_steps(tex, quality, scan: Surface, workers: int = 1):
+    """The work of the workflow's four texture rules on ``scan`` with the package ``tex`` and its ``quality``
+    module: ``[(step, function)]``, each function taking the previous outputs."""
+    opt = tex.TextureOptions(workers=workers)
+
+    def despeckle_step(_):
+        res = tex.despeckle_detail(scan, opt.despeckle_method, opt.despeckle_k, opt.despeckle_axis)
+        q = quality.scan_quality(scan.name, scan, res.mask, res.step_mm, res.step_source)
+        return {"clean": tex.fill_invalid(res.surface, opt.fill), "quality": q.to_dict()}
+
+    def bands_step(out):
+        return {"bands": tex.separate_bands(out["clean"], macro=opt.macro_mm, order=opt.butterworth_order)}
+
+    def mpd_step(out):
+        return {"mpd": tex.mean_profile_depth(out["clean"], **opt.mpd_kwargs())}
+
+    def params_step(out):
+        return {"params": {b: tex.areal_parameters(out["bands"][b], b, opt) for b in ("raw", "macro", "micro")}}
+
+    return [
+        ("despeckle", despeckle_step),
+        ("separate_bands", bands_step),
+        ("mpd", mpd_step),
+        ("texture_parameters", params_step),
+    ]
+
+
+def _rel(a: float, b: float) -> float:
+    """Relative difference of b against a (0 when identical, both NaN included)."""
+    if a == b or (np.isnan(a) and np.isnan(b)):
+        return 0.0
+    return abs(b - a) / abs(a) if a else np.inf
+
+
+def compare_outputs(old: dict, new: dict) -> tuple[dict, int]:
+    """``({name: largest relative difference}, number of values compared)`` over every output of the steps."""
+    diffs: dict[str, float] = {}
+    n = 0
+
+    def put(key, a, b):
+        nonlocal n
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        n += a.size
+        if a.shape != b.shape:
+            diffs[key] = np.inf
+            return
+        same = (a == b) | (np.isnan(a) & np.isnan(b))
+        if not same.all():
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = np.abs(b - a)[~same] / np.abs(a)[~same]
+            diffs[key] = float(np.nanmax(np.where(np.isfinite(r), r, np.inf)))
+        else:
+            diffs[key] = 0.0
+
+    put("despeckled heights", old["clean"].heights, new["clean"].heights)
+    for k, v in old["quality"].items():
+        if isinstance(v, (int, float)):
+            put(f"quality {k}", v, new["quality"][k])
+    for b in old["bands"]:
+        put(f"{b} band heights", old["bands"][b].heights, new["bands"][b].heights)
+    mo, mn = old["mpd"], new["mpd"]
+    for k in ("mpd_mm", "sd_mm", "n_segments", "n_invalid_segments", "etd_mm", "msd_mm"):
+        put(f"profile {k}", getattr(mo, k), getattr(mn, k))
+    for b, params in old["params"].items():
+        for k, (v, _) in params.items():
+            put(f"{b} {k}", v, new["params"][b][k][0])
+    return diffs, n
+
+
+def compare_old_new(root: str, scan: Surface, repeats: int) -> None:
+    """``--old``: old and new texture steps on ``scan`` (see the module docstring)."""
+    import skidsim.texture as new_tex
+    from skidsim.texture import quality as new_quality
+
+    old_tex, old_quality = load_texture_package(root)
+    steps = {"old": texture_steps(old_tex, old_quality, scan), "new": texture_steps(new_tex, new_quality, scan)}
+    cpu = {k: {name: [] for name, _ in steps[k]} for k in steps}
+    outputs = {}
+    for which in ("old", "new"):  # one untimed run each: imports (scipy.signal for the MPD), memoised tables
+        out = {}
+        for _, fn in steps[which]:
+            out.update(fn(out))
+        del out
+    for _ in range(repeats):
+        for which in ("old", "new"):  # alternating, so that both see the same load
+            out = {}
+            for name, fn in steps[which]:
+                t = time.process_time()
+                out.update(fn(out))
+                cpu[which][name].append(time.process_time() - t)
+            outputs[which] = out
+            del out
+    print(
+        f"old ({root}) against new (this tree) on {scan.name!r} {scan.shape}, CPU s (process time, one thread), "
+        f"median of {repeats} alternating run(s) after one untimed run each:"
+    )
+    print(f"  {'step':20s} {'old s':>8s} {'new s':>8s} {'new/old':>8s}")
+    tot_o = tot_n = 0.0
+    for name in cpu["old"]:
+        o, n = statistics.median(cpu["old"][name]), statistics.median(cpu["new"][name])
+        tot_o, tot_n = tot_o + o, tot_n + n
+        print(f"  {name:20s} {o:8.2f} {n:8.2f} {n / o:8.2f}")
+    print(f"  {'total':20s} {tot_o:8.2f} {tot_n:8.2f} {tot_n / tot_o:8.2f}  (speed-up {tot_o / tot_n:.2f}x)")
+    diffs, n = compare_outputs(outputs["old"], outputs["new"])
+    changed = {k: v for k, v in diffs.items() if v}
+    if not changed:
+        print(f"  outputs: all {n} values identical ({len(diffs)} quantities: heights, quality, MPD, parameters)")
+    else:
+        print(f"  outputs: {len(changed)} of {len(diffs)} quantities differ (largest relative difference):")
+        for k, v in sorted(changed.items(), key=lambda kv: -kv[1]):
+            print(f"    {k}: {v:.3e}")
+
+
 def rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
@@ -111,16 +306,9 @@ def _raw_sq(s: Surface) -> float:
 def despeckle_study(path: str) -> None:
     """The flat-binder despeckle study of docs/texture.md (see the module docstring); prints a table and writes
     the figure to ``path``."""
-    import importlib.util
-    from pathlib import Path
-
     from skidsim.plotting.texture import plot_despeckle_flat_binder
 
-    spec = importlib.util.spec_from_file_location(
-        "flat_binder", Path(__file__).resolve().parents[1] / "tests" / "test_texture_despeckle.py"
-    )
-    fb = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(fb)
+    fb = _flat_binder_module()
     shape = (2048, 2448)
     cases = []
     print(
@@ -233,6 +421,12 @@ def main() -> None:
     ap.add_argument("--bands", default="raw,macro,micro")
     ap.add_argument("--despeckle-study", metavar="PNG", help="only the flat-binder despeckle study (figure path)")
     ap.add_argument("--despeckle-synthetic", nargs="+", metavar="SITE", help="only the synthetic-site comparison")
+    ap.add_argument("--old", metavar="PATH", help="another checkout (a git worktree): compare its texture steps")
+    ap.add_argument("--compare-repeats", type=int, default=3, help="alternating old/new runs for --old (median)")
+    ap.add_argument(
+        "--scan", default="synthetic", help="synthetic (default), site:NAME, binder:PCT or a scan file (--old only)"
+    )
+    ap.add_argument("--compare-only", action="store_true", help="with --old: only the old/new comparison")
     a = ap.parse_args()
     if a.despeckle_synthetic:
         despeckle_synthetic(a.despeckle_synthetic)
@@ -242,6 +436,11 @@ def main() -> None:
         return
     retained = False if a.default_malloc else retain_freed_memory()
     print(f"load average before: {os.getloadavg()}; cpus: {os.cpu_count()}; freed memory retained: {retained}")
+    if a.old:
+        compare_old_new(a.old, pick_scan(a.scan, a.rows, a.cols), max(1, a.compare_repeats))
+        print(f"  load average after the comparison: {os.getloadavg()}")
+        if a.compare_only:
+            return
     scan = synthetic_scan(a.rows, a.cols)
     base = rss_mb()
     opt = TextureOptions(workers=a.workers)

@@ -90,14 +90,14 @@ def test_a_cluster_that_was_running_is_left_running(tmp_path):
 
 
 def test_an_interrupted_run_stops_the_cluster(tmp_path):
-    proc, log, state = _make(tmp_path, "sleep 30", wait=False)
+    # `exec`: the stand-in becomes `sleep`, so no fork lies between its log line and the sleep (a Ctrl-C that came
+    # after a fork and before its exec was lost there, and make ran the 30 s out; seen twice on a loaded machine)
+    proc, log, state = _make(tmp_path, "exec sleep 30", wait=False)
     deadline = time.monotonic() + 30
     while "pytest" not in (log.read_text() if log.exists() else ""):
         assert time.monotonic() < deadline, "the target never reached pytest"
         time.sleep(0.1)
-    # the stand-in writes its line before it starts `sleep`: give it time to get there, so that Ctrl-C reaches a
-    # running test (on a loaded machine, 2026-11-29, the signal once arrived in between and make ran for 30 s more)
-    time.sleep(1.0)
+    time.sleep(1.0)  # Ctrl-C while the test runs, not before it started
     os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the whole foreground process group
     assert proc.wait(timeout=30) != 0
     calls = log.read_text().splitlines()

@@ -4,7 +4,9 @@ from skidsim import texture
 from skidsim.runlog import setup_logging
 from skidsim.scans import load_surfaces, save_surfaces
 from skidsim.texture import TextureOptions
+from skidsim.texture.allocator import retain_freed_memory
 
+retain_freed_memory()  # reuse freed scan-sized arrays instead of page-faulting new ones (speed only)
 log = setup_logging(snakemake.log[0])
 o = TextureOptions(**snakemake.params.cfg)
 clean = load_surfaces(snakemake.input.surfaces)["clean"]

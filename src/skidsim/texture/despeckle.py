@@ -62,6 +62,8 @@ _STEP_SAMPLE = 400_000
 _MIN_STEP_SHARE = 1e-6
 #: a height step above this share of the 0.5-99.5 % height range is no quantisation (a few distinct values)
 _MAX_STEP_SHARE = 0.05
+#: points of one block of rows of the 3 x 3 median (a few arrays of it stay in cache)
+_BLOCK_POINTS = 1 << 15
 #: floor of the local scale of ``local`` on continuous (unquantised) heights, mm: below the height resolution of
 #: pavement laser scanners (LS-40: 0.01 mm), above the curvature residual of a smooth stone on a 0.05 mm grid
 _CONTINUOUS_FLOOR_MM = 1e-3
@@ -119,6 +121,56 @@ def _filled(h: np.ndarray, valid: np.ndarray) -> np.ndarray:
     if np.isnan(out).any():  # no valid point at all
         out[np.isnan(out)] = 0.0
     return out
+
+
+def _median3x3(f: np.ndarray) -> np.ndarray:
+    """``scipy.ndimage.median_filter(f, size=3, mode="nearest")`` of a complete array, the same values: per point
+    the three columns of its 3 x 3 window are sorted, and the median of the nine is the median of (the largest
+    column minimum, the median column median, the smallest column maximum); every step is a min or max, so the
+    result is one of the nine heights, as the rank filter's. Blocks of rows that stay in cache."""
+    rows, cols = f.shape
+    out = np.empty(f.shape)
+    block = max(1, min(rows, _BLOCK_POINTS // (cols + 2)))
+    pad = np.empty((block + 2, cols + 2))
+    for r0 in range(0, rows, block):
+        r1 = min(r0 + block, rows)
+        h = r1 - r0
+        pb = pad[: h + 2]
+        pb[1 : h + 1, 1:-1] = f[r0:r1]
+        pb[0, 1:-1] = f[max(r0 - 1, 0)]  # nearest: the edge rows and columns repeated
+        pb[h + 1, 1:-1] = f[min(r1, rows - 1)]
+        pb[:, 0] = pb[:, 1]
+        pb[:, -1] = pb[:, -2]
+        up, centre, down = pb[0:h], pb[1 : h + 1], pb[2 : h + 2]
+        t1, t2 = np.minimum(up, centre), np.maximum(up, centre)
+        lo, x = np.minimum(t1, down), np.maximum(t1, down)
+        mid, hi = np.minimum(t2, x), np.maximum(t2, x)  # each column of three sorted: lo <= mid <= hi
+        lo_max = np.maximum(np.maximum(lo[:, :-2], lo[:, 1:-1]), lo[:, 2:])
+        hi_min = np.minimum(np.minimum(hi[:, :-2], hi[:, 1:-1]), hi[:, 2:])
+        a, b, c = mid[:, :-2], mid[:, 1:-1], mid[:, 2:]
+        mid_med = np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
+        np.maximum(np.minimum(lo_max, mid_med), np.minimum(np.maximum(lo_max, mid_med), hi_min), out=out[r0:r1])
+    return out
+
+
+def _box_mean(x: np.ndarray, size: int) -> np.ndarray:
+    """``scipy.ndimage.uniform_filter(x, size, mode="constant")`` of a float64 array, the same bits: along y the
+    running sum of ``uniform_filter1d`` (the first window summed in order, then ``+ (entering - leaving)``, each
+    sum divided by ``size``) as one cumulative sum, then SciPy's own pass along x."""
+    rows = x.shape[0]
+    s1 = size // 2
+    p = np.zeros((rows + size - 1, x.shape[1]))
+    p[s1 : s1 + rows] = x
+    acc = np.empty(x.shape)
+    first = p[0].copy()
+    for k in range(1, size):
+        first += p[k]
+    acc[0] = first
+    np.subtract(p[size : rows + size - 1], p[: rows - 1], out=acc[1:])
+    del p
+    np.cumsum(acc, axis=0, out=acc)
+    acc /= size
+    return ndimage.uniform_filter1d(acc, size, axis=1, mode="constant")
 
 
 def _per_label(ufunc: np.ufunc, labels: np.ndarray, values: np.ndarray, m: int, empty: float) -> np.ndarray:
@@ -196,12 +248,13 @@ def detect_spikes(surface: Surface, k: float | None = None) -> SpikeDetection:
     step, source = height_step(surface)
     floor = step if step > 0 else _CONTINUOUS_FLOOR_MM
     f = _filled(h, valid)
-    r = np.where(valid, h - ndimage.median_filter(f, size=3, mode="nearest"), 0.0)
+    r = np.where(valid, h - _median3x3(f), 0.0)
+    del f
     a = np.abs(r)
     w = SCALE_WINDOW
-    n_valid = ndimage.uniform_filter(valid.astype(np.float64), size=w, mode="constant")
+    n_valid = _box_mean(valid.astype(np.float64), w)
     with np.errstate(invalid="ignore", divide="ignore"):
-        s = _MEAN_ABS_SCALE * ndimage.uniform_filter(a, size=w, mode="constant") / n_valid
+        s = _MEAN_ABS_SCALE * _box_mean(a, w) / n_valid
     thr = k * np.fmax(s, floor)  # fmax: no valid point in the window (s NaN) -> the floor
     cand = valid & (a > thr)
     mask = _isolated(h, valid, cand & (r > 0), thr, +1) | _isolated(h, valid, cand & (r < 0), thr, -1)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .segmentation import Segmentation, segment
+from .segmentation import Segmentation, deepest_motifs, segment
 
 PRUNING_REFERENCES = ("Sz", "Sq")
 
@@ -75,14 +75,16 @@ def feature_parameters(
     """Spc (1/mm), S10z S5p S5v (mm), Spd (1/mm^2), Shv (mm^3) of mean-subtracted heights ``zc`` (mm)."""
     t = pruning_threshold(zc, pruning_pct, pruning_reference)
     if hills is None:
-        hills = segment(-zc, t, dx, dy)
-    if dales is None:
+        hills = segment(-zc, t, dx, dy, keep_peaks=dales is None)
+    if dales is None and exclude_edge:
         dales = segment(zc, t, dx, dy)
     area = (zc.shape[1] - 1) * dx * (zc.shape[0] - 1) * dy
     hk = hills.select(exclude_edge)
-    dk = dales.select(exclude_edge)
     peaks = -hills.critical[hk]  # heights, descending (critical ascending in -z)
-    pits = dales.critical[dk]  # ascending: deepest first
+    if dales is None:  # S5v reads the 5 deepest significant pits only: no whole segmentation of the dales
+        pits = deepest_motifs(zc, t, 5, sinks=hills.peaks)  # the peaks of -zc: the sinks of zc
+    else:
+        pits = dales.critical[dales.select(exclude_edge)]  # ascending: deepest first
     s5p = float(np.mean(peaks[:5])) if peaks.size else np.nan
     s5v = float(-np.mean(pits[:5])) if pits.size else np.nan
     curv = peak_curvature(zc, hills.critical_index[hk], dx, dy, spc_half_window)

@@ -27,8 +27,46 @@ from skidsim.surface import Surface
 FILL_METHODS = ("linear", "nearest", "mean")
 
 
+def _interp_runs_linear(h: np.ndarray) -> int:
+    """:func:`_interp_rows` ``"linear"`` on a C-contiguous array, by runs of NaN instead of row by row: a run is
+    filled from the valid points either side of it in its row, with ``np.interp``'s arithmetic
+    (``slope * (x - x0) + z0``, ``slope = (z1 - z0) / (x1 - x0)`` on float distances), or held at the one valid
+    end; the same values. Returns the number of rows without a valid point (left NaN)."""
+    rows, cols = h.shape
+    flat = h.ravel()
+    pos = np.flatnonzero(np.isnan(flat))
+    if pos.size == 0:
+        return 0
+    row_of = pos // cols
+    brk = np.flatnonzero((np.diff(pos) != 1) | (np.diff(row_of) != 0)) + 1
+    start = pos[np.r_[0, brk]]  # first NaN of each run
+    stop = pos[np.r_[brk - 1, pos.size - 1]]  # last NaN of each run
+    col0, col1 = start % cols, stop % cols
+    has_left, has_right = col0 > 0, col1 < cols - 1
+    run_of = np.repeat(np.arange(start.size), np.diff(np.r_[0, brk, pos.size]))
+    left = start - 1  # the valid neighbours (where they exist in the row)
+    right = stop + 1
+    both = (has_left & has_right).take(run_of)
+    only_right = (~has_left & has_right).take(run_of)
+    only_left = (has_left & ~has_right).take(run_of)
+    vals = np.empty(pos.size)
+    r = run_of[both]
+    z0, z1 = flat.take(left.take(r)), flat.take(right.take(r))
+    x0 = (col0.take(r) - 1).astype(np.float64)
+    slope = (z1 - z0) / ((col1.take(r) + 1).astype(np.float64) - x0)
+    vals[both] = slope * ((pos[both] % cols).astype(np.float64) - x0) + z0
+    vals[only_right] = flat.take(right.take(run_of[only_right]))
+    vals[only_left] = flat.take(left.take(run_of[only_left]))
+    empty = ~(has_left | has_right)  # a whole row
+    fill = ~empty.take(run_of)
+    flat[pos[fill]] = vals[fill]
+    return int(empty.sum())
+
+
 def _interp_rows(h: np.ndarray, method: str) -> int:
     """Fill NaNs in place along axis 1 of ``h``; returns the number of rows that had no valid point."""
+    if method == "linear" and h.flags.c_contiguous:
+        return _interp_runs_linear(h)
     n_cols = h.shape[1]
     x = np.arange(n_cols)
     bad_rows = np.flatnonzero(np.isnan(h).any(axis=1))
@@ -108,12 +146,8 @@ def form_degree(form: str | int) -> int:
     return deg
 
 
-def fit_form(surface: Surface, form: str | int = "plane") -> np.ndarray:
-    """Least-squares polynomial form of total degree ``form`` (mm), evaluated on the grid (rows, cols).
-
-    Coordinates are scaled to [-1, 1] for conditioning. Complete grids use separable sums (no design
-    matrix the size of the scan); grids with NaN use the valid points only.
-    """
+def _form_coefficients(surface: Surface, form: str | int):
+    """Least-squares coefficients of :func:`fit_form`: ``(coef, terms, upow, vpow)``."""
     deg = form_degree(form)
     h = surface.heights
     rows, cols = h.shape
@@ -137,15 +171,45 @@ def fit_form(surface: Surface, form: str | int = "plane") -> np.ndarray:
         a = design.T @ design
         b = design.T @ zv
     coef = np.linalg.lstsq(a, b, rcond=None)[0]
-    out = np.zeros((rows, cols))
+    return coef, terms, upow, vpow
+
+
+def _form_rows(fit, r0: int, r1: int) -> np.ndarray:
+    """Rows ``r0:r1`` of the form of :func:`fit_form` (the same sum of terms, in the same order)."""
+    coef, terms, upow, vpow = fit
+    out = np.zeros((r1 - r0, upow.shape[0]))
     for c, (i, j) in zip(coef, terms):
-        out += c * np.outer(vpow[:, j], upow[:, i])
+        out += c * np.outer(vpow[r0:r1, j], upow[:, i])
     return out
 
 
+def fit_form(surface: Surface, form: str | int = "plane") -> np.ndarray:
+    """Least-squares polynomial form of total degree ``form`` (mm), evaluated on the grid (rows, cols).
+
+    Coordinates are scaled to [-1, 1] for conditioning. Complete grids use separable sums (no design
+    matrix the size of the scan); grids with NaN use the valid points only.
+    """
+    return _form_rows(_form_coefficients(surface, form), 0, surface.heights.shape[0])
+
+
+#: points of one block of rows of the form removal and of the band gains (a few arrays of it stay in cache)
+_BLOCK_POINTS = 1 << 16
+
+
+def _row_blocks(rows: int, cols: int):
+    step = max(1, _BLOCK_POINTS // max(cols, 1))
+    return ((r0, min(r0 + step, rows)) for r0 in range(0, rows, step))
+
+
 def remove_form(surface: Surface, form: str | int = "plane") -> Surface:
-    """Subtract the least-squares polynomial form (see :func:`fit_form`); NaN stay NaN."""
-    return surface.with_heights(surface.heights - fit_form(surface, form))
+    """Subtract the least-squares polynomial form (see :func:`fit_form`); NaN stay NaN. The form is evaluated
+    and subtracted block by block of rows (the same values as ``heights - fit_form(...)``)."""
+    h = surface.heights
+    fit = _form_coefficients(surface, form)
+    out = np.empty(h.shape)
+    for r0, r1 in _row_blocks(*h.shape):
+        np.subtract(h[r0:r1], _form_rows(fit, r0, r1), out=out[r0:r1])
+    return surface.with_heights(out)
 
 
 def butterworth_gain(f_per_mm: np.ndarray, cutoff_mm: float, order: int, kind: str = "low") -> np.ndarray:
@@ -221,12 +285,25 @@ def separate_bands(
     raw = remove_form(filled, form)
     h = raw.heights
     coeff = sfft.dctn(h, type=2, norm="ortho", workers=workers)
-    f = dct_radial_frequency(h.shape, surface.dx, surface.dy)
-    gains = band_gains(f, macro, order)
-    del f
+    short_mm, long_mm = macro
+    if not (0 < short_mm < long_mm):
+        raise ValueError(f"macro band must be (short_mm, long_mm) with 0 < short < long, got {macro}")
+    rows, cols = h.shape
+    # band_gains(dct_radial_frequency(...)) times the coefficients, block by block of rows (the same values)
+    fx = np.arange(cols) / (2.0 * cols * surface.dx)
+    fy = np.arange(rows) / (2.0 * rows * surface.dy)
+    fx2, fy2 = fx[None, :] ** 2, fy[:, None] ** 2
+    g_macro, g_micro = np.empty(h.shape), np.empty(h.shape)
+    for r0, r1 in _row_blocks(rows, cols):
+        f = np.sqrt(fy2[r0:r1] + fx2)
+        low_short = butterworth_gain(f, short_mm, order, "low")
+        m = np.multiply(low_short, butterworth_gain(f, long_mm, order, "high"), out=g_macro[r0:r1])
+        m *= coeff[r0:r1]
+        m = np.subtract(1.0, low_short, out=g_micro[r0:r1])
+        m *= coeff[r0:r1]
+    del coeff
     out = {"raw": raw.with_heights(h, name=surface.name)}
-    for band, g in gains.items():
-        g *= coeff  # in place: reuse the gain array
+    for band, g in (("macro", g_macro), ("micro", g_micro)):
         out[band] = raw.with_heights(
             sfft.idctn(g, type=2, norm="ortho", workers=workers, overwrite_x=True), name=surface.name
         )

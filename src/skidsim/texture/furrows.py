@@ -17,28 +17,69 @@ Definition (docs/texture.md):
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
+
+#: points of one block of profiles in :func:`_furrow_depths` (a few arrays of it stay in cache)
+_BLOCK_POINTS = 1 << 15
 
 
-def _furrow_depths(z: np.ndarray, w: int, axis: int) -> tuple[np.ndarray, int]:
-    """Depths (mm) of the furrow candidates along ``axis`` and the number of tested points."""
-    if axis == 0:
-        z = z.T
-    n = z.shape[1]
+def _sliding_max(f: np.ndarray, size: int) -> np.ndarray:
+    """``W[j] = max(f[j : j + size])`` for ``j`` in ``0 .. len(f) - size``, exact: maxima over windows of 1, 2, 4,
+    ... ``p`` points by doubling (``p`` the largest power of two up to ``size``), then the two windows of ``p``
+    that cover the ``size`` points (they overlap; a maximum does not mind)."""
+    p = 1 << (size.bit_length() - 1)
+    cur, w = f, 1
+    while w < p:
+        cur = np.maximum(cur[:-w], cur[w:])
+        w *= 2
+    n_out = f.size - size + 1
+    if p == size:
+        return cur
+    return np.maximum(cur[:n_out], cur[size - p : size - p + n_out])
+
+
+def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf) -> tuple[np.ndarray, int]:
+    """Depths (mm) of the furrow candidates along ``axis`` at least ``min_depth`` (mm) deep, profile by profile
+    in the order of the profiles (rows of ``z`` for axis 1, columns for axis 0), and the number of tested points.
+
+    The maxima before and after a point are those of ``scipy.ndimage.maximum_filter1d(z, 2 (w // 2) + 1,
+    mode="nearest")`` centred ``half`` points away (the same values: the nearest extension repeats the end value,
+    which the window holds anyway). Blocks of profiles, each extended by ``size`` points at both ends and laid end
+    to end in one buffer that stays in cache; every step runs on that flat buffer (the windows of the tested points
+    do not reach the next profile)."""
     size = 2 * (w // 2) + 1  # odd window of ~w points
     half = (size + 1) // 2
+    n = z.shape[axis]
     if n <= 2 * half + 2:
         return np.empty(0), 0
-    m = ndimage.maximum_filter1d(z, size=size, axis=1, mode="nearest")
-    j = slice(half, n - half)
-    zc = z[:, j]
-    left = m[:, 0 : n - 2 * half]  # center j - half
-    right = m[:, 2 * half : n]  # center j + half
-    prev = z[:, half - 1 : n - half - 1]
-    nxt = z[:, half + 1 : n - half + 1]
-    is_min = (zc < prev) & (zc < nxt)
-    depth = np.minimum(left, right)[is_min] - zc[is_min]
-    return depth, zc.size
+    count = z.shape[1 - axis]  # profiles
+    length = n + 2 * size  # extended profile
+    per = max(1, min(count, _BLOCK_POINTS // length))
+    k0, k1 = size + half, size + n - half  # tested points of an extended profile
+    tested = np.zeros((per, length), dtype=bool)
+    tested[:, k0:k1] = True
+    tested = tested.ravel()
+    buf = np.empty((per, length))
+    out = []
+    for b0 in range(0, count, per):
+        b1 = min(b0 + per, count)
+        prof = z[b0:b1] if axis == 1 else z[:, b0:b1].T
+        bb = buf[: b1 - b0]
+        bb[:, size : size + n] = prof
+        bb[:, :size] = prof[:, :1]
+        bb[:, size + n :] = prof[:, -1:]
+        f = bb.ravel()
+        win = _sliding_max(f, size)  # win[j]: max of f[j : j + size]
+        lo, hi = k0, (b1 - b0 - 1) * length + k1
+        zc = f[lo:hi]
+        # before: the `size` points up to the point (win from k - size); after: the `size` points from k + 1
+        depth = np.minimum(win[lo - size : hi - size], win[lo + 1 : hi + 1])
+        depth -= zc
+        keep = zc < f[lo - 1 : hi - 1]  # strict local minimum
+        keep &= zc < f[lo + 1 : hi + 1]
+        keep &= depth >= min_depth
+        keep &= tested[lo:hi]
+        out.append(depth[keep])
+    return np.concatenate(out), count * (n - 2 * half)
 
 
 def furrow_parameters(
@@ -51,8 +92,7 @@ def furrow_parameters(
     p = []
     for axis, step in ((1, dx), (0, dy)):
         w = max(1, int(round(window_mm / step)))
-        depth, tested = _furrow_depths(zc, w, axis)
-        depth = depth[depth >= tmin] if depth.size else depth
+        depth, tested = _furrow_depths(zc, w, axis, tmin)
         total_depths.append(depth)
         p.append(depth.size / (tested * step) if tested else 0.0)  # crossings per mm of profile
     d = np.concatenate(total_depths)

@@ -8,23 +8,36 @@ from __future__ import annotations
 
 import numpy as np
 
+from .pairwise import leaves, pairwise_tree, tree_sum
+
 
 def height_parameters(z: np.ndarray) -> dict[str, float]:
     """Height parameters of a complete (no NaN) height array in mm: Sq, Ssk, Sku, Sp, Sv, Sz, Sa.
 
-    Sq, Sp, Sv, Sz, Sa in mm; Ssk, Sku dimensionless.
+    Sq, Sp, Sv, Sz, Sa in mm; Ssk, Sku dimensionless. The sums of ``c^2``, ``|c|`` and ``c^4`` (``c`` the heights
+    about their mean) are those of ``np.sum`` of the whole arrays, evaluated block by block
+    (:mod:`skidsim.texture.pairwise`); the third moment is ``np.dot(c^2, c)``.
     """
     flat = np.ravel(z)
     n = flat.size
     mean = flat.mean()
     c = flat - mean
     c2 = c * c
-    m2 = c2.sum() / n
-    sq = float(np.sqrt(m2))
-    sa = float(np.abs(c).sum() / n)
     m3 = float(np.dot(c2, c) / n)
-    c2 *= c2
-    m4 = float(c2.sum() / n)
+    tree = pairwise_tree(0, n)
+    s2, s1, s4 = {}, {}, {}
+    parts = leaves(tree)
+    buf = np.empty(max(length for _, length in parts))
+    for leaf in parts:
+        start, length = leaf
+        cb, c2b, b = c[start : start + length], c2[start : start + length], buf[:length]
+        s2[leaf] = c2b.sum()
+        s1[leaf] = np.abs(cb, out=b).sum()
+        s4[leaf] = np.multiply(c2b, c2b, out=b).sum()
+    m2 = tree_sum(tree, s2) / n
+    sq = float(np.sqrt(m2))
+    sa = float(tree_sum(tree, s1) / n)
+    m4 = float(tree_sum(tree, s4) / n)
     sp = float(c.max())
     sv = float(-c.min())
     return {

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .pairwise import leaves, pairwise_tree, tree_sum
+
 
 def sdq(z: np.ndarray, dx: float, dy: float) -> float:
     """Root-mean-square gradient (dimensionless) of a complete height array (mm) on spacings dx, dy (mm)."""
@@ -24,20 +26,37 @@ def _sdq_of(gx: np.ndarray, gy: np.ndarray, dx: float, dy: float) -> float:
 
 
 def _developed_area_of(gx: np.ndarray, gy: np.ndarray, dx: float, dy: float) -> float:
-    """Eq. D.15 from the forward differences ``gx = diff(z, axis=1)``, ``gy = diff(z, axis=0)`` (overwritten)."""
-    gx *= dy
-    np.square(gx, out=gx)  # (dy dz_x)^2
-    gy *= dx
-    np.square(gy, out=gy)  # (dx dz_y)^2
+    """Eq. D.15 (mm^2) from the forward differences ``gx = diff(z, axis=1)``, ``gy = diff(z, axis=0)`` (mm).
+
+    Per cell and corner triangle ``sqrt((dy dz_x)^2 + (dx dz_y)^2 + (dx dy)^2)``; each of the four corner
+    choices is summed over the cells as ``np.sum`` of the whole ``(rows - 1, cols - 1)`` array does (pairwise),
+    but evaluated in blocks of rows that stay in cache (:mod:`skidsim.texture.pairwise`): the same bits."""
+    r1, c1 = gx.shape[0] - 1, gy.shape[1] - 1  # cells
+    if r1 <= 0 or c1 <= 0:
+        return 0.0
     cz = (dx * dy) ** 2
+    tree = pairwise_tree(0, r1 * c1)
+    sums: list[dict] = [{}, {}, {}, {}]
+    for leaf in leaves(tree):
+        s, length = leaf
+        ra, rb = s // c1, (s + length - 1) // c1 + 1  # rows of cells holding the leaf
+        sx = np.multiply(gx[ra : rb + 1], dy)
+        np.square(sx, out=sx)  # (dy dz_x)^2 on the bottom and top edges of the cells
+        sy = np.multiply(gy[ra:rb], dx)
+        np.square(sy, out=sy)  # (dx dz_y)^2 on the left and right edges
+        t = np.empty((rb - ra, c1))
+        flat = t.ravel()[s - ra * c1 : s - ra * c1 + length]
+        k = 0
+        for xs in (sx[:-1], sx[1:]):  # bottom, top x edges of each cell
+            for ys in (sy[:, :-1], sy[:, 1:]):  # left, right y edges
+                np.add(xs, ys, out=t)
+                t += cz
+                np.sqrt(t, out=t)
+                sums[k][leaf] = flat.sum()
+                k += 1
     total = 0.0
-    t = np.empty((gx.shape[0] - 1, gy.shape[1] - 1))
-    for xs in (gx[:-1, :], gx[1:, :]):  # bottom, top x edges of each cell
-        for ys in (gy[:, :-1], gy[:, 1:]):  # left, right y edges
-            np.add(xs, ys, out=t)
-            t += cz
-            np.sqrt(t, out=t)
-            total += float(t.sum())
+    for part in sums:
+        total += float(tree_sum(tree, part))
     return 0.25 * total
 
 

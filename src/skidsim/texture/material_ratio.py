@@ -34,10 +34,12 @@ class MaterialRatio:
         else:
             s = sorted_desc
         self.sorted = s
-        self._neg = -s  # ascending: the searchsorted key of smr and the volumes, negated once
+        self._asc = s[::-1]  # ascending: the searchsorted key of smr and the volumes (a view)
         self.n = s.size
-        # cumulative sums for exact volumes: csum[i] = sum of the i highest heights
-        self._csum = np.concatenate([[0.0], np.cumsum(s)])
+        # cumulative sums for exact volumes: csum[i] = sum of the i highest heights (one sequential sum)
+        self._csum = np.empty(s.size + 1)
+        self._csum[0] = 0.0
+        np.cumsum(s, out=self._csum[1:])
         self.n_classes = int(n_classes)
 
     def smc(self, mr_pct):
@@ -50,18 +52,17 @@ class MaterialRatio:
 
     def smr(self, c: float) -> float:
         """Material ratio (%) at height ``c`` (mm): share of points with z >= c."""
-        # sorted descending: count of s >= c
-        count = np.searchsorted(self._neg, -c, side="right")
+        count = self.n - np.searchsorted(self._asc, c, side="left")  # points with z >= c
         return 100.0 * count / self.n
 
     def volume_above(self, c: float) -> float:
         """``mean(max(z - c, 0))`` in mm^3/mm^2."""
-        k = np.searchsorted(self._neg, -c, side="left")  # number of points with z > c
+        k = self.n - np.searchsorted(self._asc, c, side="right")  # number of points with z > c
         return float((self._csum[k] - k * c) / self.n)
 
     def volume_below(self, c: float) -> float:
         """``mean(max(c - z, 0))`` in mm^3/mm^2."""
-        k = np.searchsorted(self._neg, -c, side="right")  # points with z >= c
+        k = self.n - np.searchsorted(self._asc, c, side="left")  # points with z >= c
         m = self.n - k
         return float((m * c - (self._csum[-1] - self._csum[k])) / self.n)
 

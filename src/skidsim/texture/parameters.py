@@ -222,9 +222,8 @@ def areal_parameters(
     hills = None
     if "features" in g or "motifs" in g:
         t = pruning_threshold(zc, opt.pruning_pct, opt.pruning_reference)
-        hills = segment(-zc, t, dx, dy)
+        hills = segment(-zc, t, dx, dy, keep_peaks="features" in g)  # its peaks: the dales' sinks, for S5v
     if "features" in g:
-        dales = segment(zc, t, dx, dy)
         out.update(
             feature_parameters(
                 zc,
@@ -235,10 +234,8 @@ def areal_parameters(
                 exclude_edge=opt.exclude_edge,
                 spc_half_window=opt.spc_half_window,
                 hills=hills,
-                dales=dales,
             )
         )
-        del dales
     if "furrows" in g:
         out.update(
             furrow_parameters(zc, dx, dy, window_mm=opt.furrow_window_mm, min_depth_pct=opt.furrow_min_depth_pct)

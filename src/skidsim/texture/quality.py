@@ -134,9 +134,10 @@ def plane_slopes(surface: Surface) -> tuple[float, float]:
     ok = np.isfinite(h)
     if ok.sum() < 3:
         return float("nan"), float("nan")
-    yy, xx = np.nonzero(ok)
-    x = xx * surface.dx
-    y = yy * surface.dy
+    rows, cols = h.shape
+    # the coordinates of the valid points in row-major order (as from np.nonzero, without the index arrays)
+    x = np.broadcast_to(np.arange(cols) * surface.dx, h.shape)[ok]
+    y = np.broadcast_to((np.arange(rows) * surface.dy)[:, None], h.shape)[ok]
     z = h[ok]
     x = x - x.mean()
     y = y - y.mean()

@@ -32,61 +32,120 @@ _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)
 _EIGHT = np.ones((3, 3), dtype=bool)
 _BLOCK_POINTS = 32 * 2448  # points per block of rows in catchment_basins (a few arrays of it fit in cache)
 _WHOLE_ROUNDS_ABOVE = 16  # catchment_basins: whole-array doubling rounds while > 1/16 of the points move
+_GATHER_BLOCK = 1 << 16  # entries per gather of a whole doubling round (the indices stay in cache)
+_SADDLE_STRIP_POINTS = 16 * 2448  # points per strip of rows in _saddles
+_PARALLEL_EDGES_SHARE = 0.7  # _contract_leaves drops dominated parallel edges after a round keeping more edges
 
 
-def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
-    """Steepest-descent basins of ``d`` (8-connected). Returns ``(labels 1..n (int32), n, sink flat index of
-    each basin (n,))``; the sink of basin k is ``sink[k-1]``."""
+def _descent(d: np.ndarray, peaks: bool = False):
+    """Steepest descent of every point of ``d``: ``(ptr, sink)``, ``ptr`` (int32, flat) the 8-neighbour that is
+    strictly lowest (the first of ``_OFFSETS`` on ties), the point itself where no neighbour is strictly lower;
+    ``sink`` (bool) True there. With ``peaks`` also ``peak`` (bool): no neighbour strictly higher (the sinks of
+    ``-d``).
+
+    Blocks of rows, each with its own padded copy (NaN outside the grid: never lower, ignored by ``fmin`` and
+    ``fmax``), so that the eight passes over a block stay in cache. Per offset a strict ``<`` against the lowest
+    height so far, the running minimum, and a running maximum of ``(k + 1) * lowered``: the last offset that
+    lowered the minimum is the first that reaches it."""
     rows, cols = d.shape
-    pad = np.full((rows + 2, cols + 2), np.inf)
-    pad[1:-1, 1:-1] = d
-    code = np.full(d.shape, -1, dtype=np.int8)
-    # blocks of rows, so that the eight passes over a block stay in cache (same result as whole-array passes)
+    ptr = np.empty(d.size, dtype=np.int32)
+    sink = np.empty(d.shape, dtype=bool)
+    peak = np.empty(d.shape, dtype=bool) if peaks else None
+    delta = np.array([0] + [oy * cols + ox for oy, ox in _OFFSETS], dtype=np.int32)  # code 0: no lower point
     block = max(1, min(rows, _BLOCK_POINTS // max(cols, 1)))
+    pad = np.full((block + 2, cols + 2), np.nan)
     low = np.empty((block, cols))
+    high = np.empty((block, cols))
     better = np.empty((block, cols), dtype=bool)
+    code = np.empty((block, cols), dtype=np.int8)
+    tmp = np.empty((block, cols), dtype=np.int8)
     for r0 in range(0, rows, block):
         r1 = min(r0 + block, rows)
-        lo, be, co = low[: r1 - r0], better[: r1 - r0], code[r0:r1]
-        lo[...] = d[r0:r1]
+        h = r1 - r0
+        pb, lo, hi, be, co, tm = pad[: h + 2], low[:h], high[:h], better[:h], code[:h], tmp[:h]
+        # rows r0 - 1 .. r1 of d in rows 0 .. h + 1 of the padded block, NaN outside the grid
+        pb[0, 1:-1] = d[r0 - 1] if r0 > 0 else np.nan
+        pb[1 : h + 1, 1:-1] = d[r0:r1]
+        pb[h + 1, 1:-1] = d[r1] if r1 < rows else np.nan
+        np.copyto(lo, pb[1 : h + 1, 1:-1])
+        co.fill(0)
+        if peaks:
+            hi.fill(-np.inf)
         for k, (oy, ox) in enumerate(_OFFSETS):
-            nb = pad[1 + oy + r0 : 1 + oy + r1, 1 + ox : 1 + ox + cols]
+            nb = pb[1 + oy : 1 + oy + h, 1 + ox : 1 + ox + cols]
             np.less(nb, lo, out=be)  # strictly lower than the lowest so far: first offset wins ties
-            np.minimum(lo, nb, out=lo)
-            np.copyto(co, np.int8(k), where=be)
-    del pad, low, better
-    sink = code < 0
-    markers, n = ndimage.label(sink, structure=_EIGHT)
-    del sink
-    delta = np.array([oy * cols + ox for oy, ox in _OFFSETS] + [0], dtype=np.int32)
-    ptr = np.arange(rows * cols, dtype=np.int32)
-    ptr += delta[code.ravel()]  # code -1 indexes the trailing 0
-    del code
-    # pointer doubling: every point ends at the sink of its descent path (a sink points to itself; any order of
-    # jumps ends there). Whole-array rounds while more than 1/16 of the points still move (a gather of int32 in
-    # order is cheaper than the indexed updates), then only the points not yet at a sink jump
-    nxt = ptr[ptr]
-    moving = nxt != ptr
-    while np.count_nonzero(moving) * _WHOLE_ROUNDS_ABOVE > ptr.size:
-        ptr = nxt
-        nxt = ptr[ptr]
+            np.fmin(lo, nb, out=lo)
+            np.multiply(be.view(np.int8), np.int8(k + 1), out=tm)
+            np.maximum(co, tm, out=co)
+            if peaks:
+                np.fmax(hi, nb, out=hi)
+        np.equal(co, 0, out=sink[r0:r1])
+        if peaks:
+            np.less_equal(hi, d[r0:r1], out=peak[r0:r1])
+        out = ptr[r0 * cols : r1 * cols]
+        delta.take(co.ravel(), out=out, mode="clip")
+        out += np.arange(r0 * cols, r1 * cols, dtype=np.int32)
+    return (ptr, sink, peak) if peaks else (ptr, sink)
+
+
+def _jump_to_roots(ptr: np.ndarray) -> np.ndarray:
+    """Pointer doubling on ``ptr`` (int32 flat indices, a forest whose roots point to themselves) until every
+    entry is its root; returns the array (``ptr`` is overwritten). Any order of jumps ends at the root, so the
+    result is that of plain doubling. Whole-array rounds (gathers in blocks that stay in cache) while more than
+    1/16 of the entries still move, then only the entries not yet at a root."""
+    n = ptr.size
+    nxt = np.empty_like(ptr)
+    moving = np.empty(n, dtype=bool)
+    step = _GATHER_BLOCK
+
+    def whole_round(src, dst):
+        for s0 in range(0, n, step):
+            np.take(src, src[s0 : s0 + step], out=dst[s0 : s0 + step], mode="clip")
+
+    whole_round(ptr, nxt)
+    np.not_equal(nxt, ptr, out=moving)
+    while np.count_nonzero(moving) * _WHOLE_ROUNDS_ABOVE > n:
+        ptr, nxt = nxt, ptr
+        whole_round(ptr, nxt)
         np.not_equal(nxt, ptr, out=moving)
     del nxt
     active = np.flatnonzero(moving)
     del moving
     while active.size:
-        nxt = ptr[ptr[active]]
-        ptr[active] = nxt
-        active = active[ptr[nxt] != nxt]
+        nx = ptr.take(ptr.take(active, mode="clip"), mode="clip")
+        ptr[active] = nx
+        active = active[ptr.take(nx, mode="clip") != nx]
+    return ptr
+
+
+def _first_sinks(sink_idx: np.ndarray, lab: np.ndarray, n: int) -> np.ndarray:
+    """Flat index of the first (in raster order) point of each plateau label 1..n, from the ascending flat
+    indices ``sink_idx`` of the sink points and their labels ``lab``."""
+    first = np.full(n + 1, sink_idx.size, dtype=np.intp)
+    np.minimum.at(first, lab, np.arange(sink_idx.size, dtype=np.intp))
+    return sink_idx[first[1:]]
+
+
+def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
+    """Steepest-descent basins of ``d`` (8-connected). Returns ``(labels 1..n (int32), n, sink flat index of
+    each basin (n,))``; the sink of basin k is ``sink[k-1]``."""
+    return _catchment_basins(d)[:3]
+
+
+def _catchment_basins(d: np.ndarray, peaks: bool = False):
+    """:func:`catchment_basins` and, with ``peaks``, the points without a strictly higher neighbour (else None)."""
+    ptr, sink, *peak = _descent(d, peaks)
+    markers, n = ndimage.label(sink, structure=_EIGHT)
+    sink_idx = np.flatnonzero(sink)
+    del sink
     flat_markers = markers.ravel()
-    labels = flat_markers[ptr].reshape(d.shape)
+    # every point points to its steepest-descent neighbour, a sink to itself; doubling ends at the sinks
+    ptr = _jump_to_roots(ptr)
+    labels = flat_markers.take(ptr, mode="clip").reshape(d.shape)
     del ptr
     if labels.dtype != np.int32:
         labels = labels.astype(np.int32)
-    sink_idx = np.flatnonzero(flat_markers)
-    lab = flat_markers[sink_idx]
-    _, first = np.unique(lab, return_index=True)
-    return labels, n, sink_idx[first]
+    return labels, n, _first_sinks(sink_idx, flat_markers.take(sink_idx), n), (peak[0] if peaks else None)
 
 
 def boundary_pairs(labels: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -151,46 +210,58 @@ def _unique_min(key: np.ndarray, pour: np.ndarray, key_bound: int) -> tuple[np.n
         order = np.argsort(key)
         key = key[order]
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    return key[starts], np.minimum.reduceat(pour[order], starts)
+    return key[starts], np.minimum.reduceat(pour.take(order, mode="clip"), starts)
 
 
 def _saddles(labels: np.ndarray, d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``dedupe_edges(*boundary_pairs(labels, d), n)`` in one pass, same result: the pairs of each direction
-    are keyed as unordered pairs at once (runs of one key along a boundary reduced to their minimum pour), and
-    the keys of all directions sorted together."""
+    """``dedupe_edges(*boundary_pairs(labels, d), n)``, same result, in strips of rows: the pairs of each
+    direction whose first point lies in the strip are keyed as unordered pairs at once and reduced to unique keys
+    with their minimum pour per strip (in cache: most basins lie in one or two strips); the strips' keys are then
+    reduced once more. The minimum is exact and does not depend on the order, so the saddles are those of the
+    whole set of pairs."""
     rows, cols = labels.shape
     lf = labels.ravel()
     df = d.ravel()
+    total = lf.size
     base = n + 1  # key = lo * base + hi on 1-based labels: ascending like the 0-based keys of dedupe_edges
-    keys, pours = [], []
-    for step, wrap in ((1, cols - 1), (cols, None), (cols + 1, cols - 1), (cols - 1, 0)):
-        if step == 0 or step >= lf.size:
-            continue
-        m = lf[:-step] != lf[step:]
-        if wrap is not None:
-            m[wrap::cols] = False
-        ia = np.flatnonzero(m)
-        del m
-        if ia.size == 0:
-            continue
-        ib = ia + step
-        x, y = lf[ia], lf[ib]
-        p = np.maximum(df[ia], df[ib])
-        del ia, ib
-        key = np.minimum(x, y).astype(np.int64)
-        key *= base
-        key += np.maximum(x, y)
-        del x, y
-        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-        keys.append(key[starts])
-        pours.append(np.minimum.reduceat(p, starts))
-    if not keys:
+    bound = base * base
+    block = max(1, _SADDLE_STRIP_POINTS // max(cols, 1))
+    # (flat offset to the second point, column of the first point whose pair would wrap to another row)
+    steps = ((1, cols - 1), (cols, None), (cols + 1, cols - 1), (cols - 1, 0))
+    strip_keys, strip_pours = [], []
+    for r0 in range(0, rows, block):
+        a0, a1 = r0 * cols, min(r0 + block, rows) * cols
+        keys, pours = [], []
+        for step, wrap in steps:
+            e = min(a1, total - step)  # first points whose partner exists
+            if step == 0 or e <= a0:  # one column: no diagonal pairs; one row: no pairs across rows
+                continue
+            la, lb = lf[a0:e], lf[a0 + step : e + step]
+            m = la != lb
+            if wrap is not None:
+                m[wrap::cols] = False  # a0 starts a row
+            ia = np.flatnonzero(m)
+            del m
+            if ia.size == 0:
+                continue
+            x, y = la.take(ia), lb.take(ia)
+            p = np.maximum(df[a0:e].take(ia), df[a0 + step : e + step].take(ia))
+            key = np.minimum(x, y).astype(np.int64)
+            key *= base
+            key += np.maximum(x, y)
+            keys.append(key)
+            pours.append(p)
+        if keys:
+            k, p = _unique_min(np.concatenate(keys), np.concatenate(pours), bound)
+            strip_keys.append(k)
+            strip_pours.append(p)
+    if not strip_keys:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty.copy(), np.empty(0)
-    key = np.concatenate(keys)
-    pour = np.concatenate(pours)
-    del keys, pours
-    uniq, saddle = _unique_min(key, pour, base * base)
+    key = np.concatenate(strip_keys)
+    pour = np.concatenate(strip_pours)
+    del strip_keys, strip_pours
+    uniq, saddle = _unique_min(key, pour, bound)
     return uniq // base - 1, uniq % base - 1, saddle
 
 
@@ -201,41 +272,106 @@ def basin_adjacency(labels: np.ndarray, d: np.ndarray, n: int) -> tuple[np.ndarr
     return lo + 1, hi + 1, s
 
 
+def _drop_dominated_edges(a, b, pour, n):
+    """The edges of :func:`_contract_leaves` in their order without those above the lowest saddle between the same
+    two units: as long as both units live, that lower edge joins them too, and a unit's lowest saddle is at most
+    it, so no round chooses the higher one (and the unit pairs' lowest saddles stay). Merging leaves many parallel
+    edges between the surviving units; dropping them keeps the later rounds proportional to the distinct pairs."""
+    key = np.minimum(a, b) * n + np.maximum(a, b)  # the unordered pair
+    idx_bits = max(int(key.size - 1).bit_length(), 1)
+    if idx_bits + int(n * n).bit_length() > 63:
+        return a, b, pour
+    key <<= idx_bits
+    key |= np.arange(key.size, dtype=np.int64)
+    key.sort()
+    order = key & ((1 << idx_bits) - 1)
+    key >>= idx_bits
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    p = pour.take(order)
+    low = np.minimum.reduceat(p, starts)
+    keep = np.empty(a.size, dtype=bool)
+    keep[order] = p == np.repeat(low, np.diff(np.r_[starts, key.size]))
+    return a[keep], b[keep], pour[keep]
+
+
 def _contract_leaves(a, b, pour, minv, threshold, max_rounds=10000):
     """Vectorised pre-pruning (exact, see docs): a unit whose lowest incident saddle leads to a unit with a
     deeper minimum, at a local depth below ``threshold``, dies there in any order of processing; it is merged
     into that neighbour. At convergence every remaining unit has local depth >= threshold, hence persistence
     >= threshold: the units are exactly the significant motifs. Returns ``(unit of each basin, edges between
-    remaining units)``."""
+    remaining units)``.
+
+    A unit's local depth never decreases (it keeps its minimum; what it absorbs has no saddle below its lowest
+    one), so a unit at local depth >= threshold stays so and is never a candidate again. Edges between two such
+    settled units change no later round: they are set aside and returned before the others; every candidate sees
+    all of its incident edges in their original order, so the rounds choose the same neighbours as on the whole
+    edge list. Every round works on the remaining edges only (the per-unit arrays are reset where they were
+    written): on plateaus of equal heights the rounds merge few units each, and there are many. A merged unit
+    keeps the unit it merged into (``parent``); the unit of every basin is the end of that chain."""
     n = minv.size
-    unit = np.arange(n)
+    parent = np.arange(n)  # a live unit: itself; a merged one: where it went
+    lowest = np.full(n, np.inf)
+    nb = np.full(n, -1, dtype=np.int64)
+    mark = np.zeros(n, dtype=bool)
+    done_a, done_b, done_p = [], [], []
     for _ in range(max_rounds):
         if a.size == 0:
             break
-        lowest = np.full(n, np.inf)
         np.minimum.at(lowest, a, pour)
         np.minimum.at(lowest, b, pour)
-        nb = np.full(n, -1, dtype=np.int64)
-        m = pour == lowest[a]
+        low_a, low_b = lowest.take(a), lowest.take(b)
+        m = pour == low_a
         nb[a[m]] = b[m]
-        m = pour == lowest[b]
+        m = pour == low_b
         nb[b[m]] = a[m]
-        cand = np.flatnonzero((nb >= 0) & (lowest - minv < threshold))
-        deeper = (minv[nb[cand]] < minv[cand]) | ((minv[nb[cand]] == minv[cand]) & (nb[cand] < cand))
-        cand = cand[deeper]
+        # local depth below the threshold, per end of every edge (settled units are no candidates)
+        open_a = low_a - minv.take(a) < threshold
+        open_b = low_b - minv.take(b) < threshold
+        mark[a[open_a]] = True
+        mark[b[open_b]] = True
+        cand = np.flatnonzero(mark)
+        mark[cand] = False
+        nbc = nb.take(cand)
+        lowest[a] = np.inf  # reset what this round wrote
+        lowest[b] = np.inf
+        nb[a] = -1
+        nb[b] = -1
+        mc, mn = minv.take(cand), minv.take(nbc)
+        deeper = (mn < mc) | ((mn == mc) & (nbc < cand))
+        cand, nbc = cand[deeper], nbc[deeper]
         if cand.size == 0:
             break
-        parent = np.arange(n)
-        parent[cand] = nb[cand]
-        for _ in range(64):  # chains strictly descend in (minv, index): pointer doubling terminates
-            nxt = parent[parent]
-            if np.array_equal(nxt, parent):
-                break
-            parent = nxt
-        unit = parent[unit]
-        a, b = parent[a], parent[b]
+        settled_pair = ~(open_a | open_b)  # never relabelled: settled units are not merged
+        if settled_pair.any():
+            done_a.append(a[settled_pair])
+            done_b.append(b[settled_pair])
+            done_p.append(pour[settled_pair])
+        parent[cand] = nbc
+        # chains of this round strictly descend in (minv, index): jump the candidates to the end of theirs
+        act = cand
+        while act.size:
+            to = parent.take(act)
+            nxt = parent.take(to)
+            moved = nxt != to
+            act = act[moved]
+            parent[act] = nxt[moved]
+        a, b = parent.take(a), parent.take(b)
         keep = a != b
+        keep &= ~settled_pair
+        before = a.size
         a, b, pour = a[keep], b[keep], pour[keep]
+        if a.size > _PARALLEL_EDGES_SHARE * before:  # the edges shrink slowly: drop the dominated parallel ones
+            a, b, pour = _drop_dominated_edges(a, b, pour, n)
+    if done_a:
+        a = np.concatenate(done_a + [a])
+        b = np.concatenate(done_b + [b])
+        pour = np.concatenate(done_p + [pour])
+    # a basin merged in an earlier round points to the unit of that round, which may have merged since
+    unit = parent
+    nxt = unit.take(unit)
+    while not np.array_equal(nxt, unit):
+        unit = nxt
+        nxt = unit.take(unit)
     return unit, a, b, pour
 
 
@@ -247,7 +383,8 @@ class Segmentation:
     critical_index: flat index of the critical point; critical: its value in ``d`` (mm);
     base: base height in ``d`` (mm); area_mm2; volume_mm3 (``sum(max(base - d, 0)) dx dy`` over the motif);
     touches_edge: motif has a border point; threshold_mm: the pruning height used.
-    motif_of_basin: basin label -> motif id (0..m-1), for plotting; labels: basin labels.
+    motif_of_basin: basin label -> motif id (0..m-1), for plotting; labels: basin labels; peaks (with
+    ``keep_peaks``): the points of ``d`` without a strictly higher neighbour, i.e. the sinks of ``-d``, else None.
     """
 
     critical_index: np.ndarray
@@ -259,15 +396,19 @@ class Segmentation:
     threshold_mm: float
     motif_of_basin: np.ndarray
     labels: np.ndarray
+    peaks: np.ndarray | None = None
 
     def select(self, exclude_edge: bool) -> np.ndarray:
         """Boolean mask of the motifs kept (all, or those not touching the border)."""
         return ~self.touches_edge if exclude_edge else np.ones(self.critical.size, dtype=bool)
 
 
-def segment(d: np.ndarray, threshold_mm: float, dx: float, dy: float, keep_labels: bool = False) -> Segmentation:
-    """Wolf-pruned watershed segmentation of ``d`` (mm) into dales; see the module docstring."""
-    labels, n, sink = catchment_basins(d)
+def segment(
+    d: np.ndarray, threshold_mm: float, dx: float, dy: float, keep_labels: bool = False, keep_peaks: bool = False
+) -> Segmentation:
+    """Wolf-pruned watershed segmentation of ``d`` (mm) into dales; see the module docstring. ``keep_peaks``: also
+    the sinks of ``-d`` (from the same pass over the neighbours; :func:`deepest_motifs` of ``-d`` reads them)."""
+    labels, n, sink, peaks = _catchment_basins(d, keep_peaks)
     flat = d.ravel()
     crit_val = flat[sink]  # basin k (0-based) -> its minimum
     t = float(threshold_mm)
@@ -282,20 +423,19 @@ def segment(d: np.ndarray, threshold_mm: float, dx: float, dy: float, keep_label
     base = np.full(m, np.inf)
     np.minimum.at(base, ma[diff], sad[diff])
     np.minimum.at(base, mb[diff], sad[diff])
-    labf = labels.ravel()
-    # points per motif from the points per basin (exact integer counts, as counting the points directly)
-    area = np.bincount(motif_of_basin, weights=np.bincount(labf, minlength=n + 1)[1:], minlength=m) * dx * dy
-    pix_motif = np.concatenate((motif_of_basin[:1], motif_of_basin))[labf]  # label k -> motif_of_basin[k - 1]
-    del labf
+    # motif of every point (label k -> motif_of_basin[k - 1]); points per motif are exact integer counts
+    pix_motif = np.concatenate((motif_of_basin[:1], motif_of_basin)).take(labels.ravel(), mode="clip")
+    area = np.bincount(pix_motif, minlength=m) * dx * dy
     lone = ~np.isfinite(base)
     if lone.any():
         mx = np.full(m, -np.inf)
         np.maximum.at(mx, pix_motif, flat)
         base[lone] = mx[lone]
-    w = base[pix_motif] - flat
+    w = base.take(pix_motif, mode="clip")
+    w -= flat
     np.maximum(w, 0.0, out=w)
     vol = np.bincount(pix_motif, weights=w, minlength=m) * dx * dy
-    del w
+    del w, pix_motif
     border = np.unique(np.concatenate([labels[0, :], labels[-1, :], labels[:, 0], labels[:, -1]]))
     edge = np.zeros(m, dtype=bool)
     edge[motif_of_basin[border - 1]] = True
@@ -312,4 +452,103 @@ def segment(d: np.ndarray, threshold_mm: float, dx: float, dy: float, keep_label
         threshold_mm=t,
         motif_of_basin=inv[motif_of_basin],
         labels=labels if keep_labels else np.empty(0, np.int32),
+        peaks=peaks,
     )
+
+
+def _sink_plateaus(d: np.ndarray, sink: np.ndarray | None = None) -> tuple[np.ndarray, int, np.ndarray]:
+    """The sinks of :func:`catchment_basins` without the basins: ``(plateau labels 1..n (0 elsewhere), n, flat
+    index of the first point of each plateau)``; plateau k is the sink of basin k (same labels). A sink is a point
+    without a strictly lower 8-neighbour: the minimum of its neighbours is not below it. ``sink``: that mask when
+    it is known (the peaks of ``-d`` from :func:`segment`)."""
+    if sink is not None:
+        markers, n = ndimage.label(sink, structure=_EIGHT)
+        sink_idx = np.flatnonzero(sink)
+        return markers, n, _first_sinks(sink_idx, markers.ravel().take(sink_idx), n)
+    rows, cols = d.shape
+    sink = np.empty(d.shape, dtype=bool)
+    block = max(1, min(rows, _BLOCK_POINTS // max(cols, 1)))
+    pad = np.full((block + 2, cols + 2), np.inf)
+    low = np.empty((block, cols))
+    for r0 in range(0, rows, block):
+        r1 = min(r0 + block, rows)
+        h = r1 - r0
+        pb, lo = pad[: h + 2], low[:h]
+        pb[0, 1:-1] = d[r0 - 1] if r0 > 0 else np.inf
+        pb[1 : h + 1, 1:-1] = d[r0:r1]
+        pb[h + 1, 1:-1] = d[r1] if r1 < rows else np.inf
+        lo.fill(np.inf)
+        for oy, ox in _OFFSETS:
+            np.minimum(lo, pb[1 + oy : 1 + oy + h, 1 + ox : 1 + ox + cols], out=lo)
+        np.greater_equal(lo, d[r0:r1], out=sink[r0:r1])
+    markers, n = ndimage.label(sink, structure=_EIGHT)
+    sink_idx = np.flatnonzero(sink)
+    return markers, n, _first_sinks(sink_idx, markers.ravel().take(sink_idx), n)
+
+
+def deepest_motifs(
+    d: np.ndarray, threshold_mm: float, count: int, flood_budget: float = 2.0, sinks: np.ndarray | None = None
+) -> np.ndarray:
+    """``segment(d, threshold_mm, ...).critical[:count]`` (mm, ascending): the minima of the ``count`` deepest
+    significant motifs, without segmenting the whole array (S5v reads only these).
+
+    The motifs :func:`segment` keeps are those of persistence >= ``t`` (module docstring, step 3): a basin with
+    minimum ``v`` is merged iff a path of 8-adjacent points, each with ``d - v < t`` (the contraction's test on
+    the saddle it crosses, the highest point of the path), joins it to a deeper basin (lower minimum; on equal
+    minima a lower basin index, the index of :func:`catchment_basins`). The basins are visited in that order from
+    the deepest. For each, the 8-connected region of ``d - v < t`` around its sink is labelled in a window around
+    it; the basin is merged as soon as the part of the region in the window holds a lower point, a sink of an
+    equally deep basin of lower index, or a point of the region of a basin visited before (its region, at a level
+    no lower, then holds that whole region and that deeper sink); it is kept when the region ends inside the
+    window without any; otherwise the window grows. When the windows together exceed ``flood_budget`` times the
+    array, the whole segmentation is done instead (same result). ``sinks``: the points of ``d`` without a strictly
+    lower neighbour when known (``segment(-d, ..., keep_peaks=True).peaks``)."""
+    t = float(threshold_mm)
+    rows, cols = d.shape
+    markers, n, first = _sink_plateaus(d, sinks)
+    crit = d.ravel().take(first)
+    pending = np.argsort(crit, kind="stable")  # ascending minimum, then basin index
+    if not t > 0:  # d - v < t never holds on a saddle (saddles are not below the basin's minimum): nothing merges
+        return crit[pending[:count]]
+    out: list[float] = []
+    flooded = 0
+    seen = np.zeros(d.shape, dtype=bool)  # the (parts of) regions labelled so far
+    seen_flat = seen.ravel()
+    for b in pending:
+        if len(out) >= count:
+            break
+        if seen_flat[first[b]]:
+            continue  # inside the region of a deeper basin
+        v = crit[b]
+        if not out:  # the deepest basin: nothing deeper to merge into (its region, often most of it, unlabelled)
+            out.append(v)
+            continue
+        r, c = divmod(int(first[b]), cols)
+        h = 16
+        while True:
+            r0, r1, c0, c1 = max(r - h, 0), min(r + h + 1, rows), max(c - h, 0), min(c + h + 1, cols)
+            win = d[r0:r1, c0:c1]
+            lab, _ = ndimage.label((win - v) < t, structure=_EIGHT)
+            region = lab == lab[r - r0, c - c0]
+            del lab
+            flooded += region.size
+            if flooded > flood_budget * d.size:
+                return segment(d, t, 1.0, 1.0).critical[:count]
+            tied = markers[r0:r1, c0:c1][region & (win == v)]
+            merged = (
+                (win[region] < v).any()  # a lower point: its descent ends in a deeper basin of the region
+                or ((tied > 0) & (tied - 1 < b)).any()  # an equally deep basin of lower index
+                or (region & seen[r0:r1, c0:c1]).any()  # the region of a deeper basin
+            )
+            if merged or not (
+                (r0 > 0 and region[0].any())
+                or (r1 < rows and region[-1].any())
+                or (c0 > 0 and region[:, 0].any())
+                or (c1 < cols and region[:, -1].any())
+            ):
+                break  # decided, or the region ends inside the window (or the window is the whole array)
+            h *= 4
+        seen[r0:r1, c0:c1] |= region
+        if not merged:
+            out.append(v)
+    return np.asarray(out, dtype=d.dtype)

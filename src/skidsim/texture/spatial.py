@@ -49,12 +49,16 @@ def _padded_power(z: np.ndarray, workers: int, max_lag_fraction: float):
     rows, cols = z.shape
     ly = int(np.floor(max_lag_fraction * (rows - 1)))
     lx = int(np.floor(max_lag_fraction * (cols - 1)))
-    c = z - z.mean()
     shape = (sfft.next_fast_len(rows + ly, real=True), sfft.next_fast_len(cols + lx, real=True))
-    spec = sfft.rfft2(c, s=shape, workers=workers)
+    # the mean-subtracted heights written straight into the zero padding (what rfft2(c, s=shape) pads to)
+    c = np.empty(shape)
+    c[:rows, cols:] = 0.0
+    c[rows:] = 0.0
+    np.subtract(z, z.mean(), out=c[:rows, :cols])
+    spec = sfft.rfft2(c, workers=workers)
     del c
-    power = spec.real**2
-    power += spec.imag**2
+    power = np.square(spec.real)
+    power += np.square(spec.imag)
     return power, shape, ly, lx
 
 
@@ -69,7 +73,7 @@ class _AcfRows:
 
     def __init__(self, power: np.ndarray, shape, rows: int, cols: int, ly: int, lx: int, workers: int = 1):
         # complex input, as irfft2 converts it (a real input would take pocketfft's symmetric path: other roundings)
-        self.half = sfft.ifft(power.astype(complex), axis=0, norm="forward", workers=workers)
+        self.half = sfft.ifft(power.astype(complex), axis=0, norm="forward", workers=workers, overwrite_x=True)
         self.shape, self.rows, self.cols, self.ly, self.lx, self.workers = tuple(shape), rows, cols, ly, lx, workers
         # irfft2's scale factor 1 / (ny nx), computed as pocketfft does (long double, rounded once)
         self.fct = np.float64(1 / np.longdouble(self.shape[0] * self.shape[1]))
@@ -183,9 +187,10 @@ def _decay_lengths_in_crop(crop, ra, ca, r0, c0, dx, dy, s, n_angles, ray_step):
     return np.degrees(theta), out
 
 
-@lru_cache(maxsize=4)
+@lru_cache(maxsize=2)
 def _angular_bins(shape: tuple[int, int], dx: float, dy: float, step_deg: float) -> np.ndarray:
-    """Angular bin (int32, -1 for the zero frequency) of every rfft2 coefficient; read-only, memoised."""
+    """Angular bin + 1 (intp, 0 for the zero frequency) of every rfft2 coefficient, flat, as ``np.bincount``
+    takes it; read-only, memoised."""
     fy = sfft.fftfreq(shape[0], d=dy).astype(np.float32)
     fx = sfft.rfftfreq(shape[1], d=dx).astype(np.float32)
     ang = np.degrees(np.arctan2(fy[:, None], fx[None, :]))
@@ -194,6 +199,7 @@ def _angular_bins(shape: tuple[int, int], dx: float, dy: float, step_deg: float)
     b = (ang / np.float32(step_deg)).astype(np.int32)
     b %= nb
     b[0, 0] = -1
+    b = (b.ravel() + 1).astype(np.intp)
     b.setflags(write=False)
     return b
 
@@ -203,7 +209,7 @@ def texture_direction(amp: np.ndarray, shape: tuple[int, int], dx: float, dy: fl
     ``amp`` of a zero-padded grid ``shape``."""
     nb = int(round(180.0 / step_deg))
     b = _angular_bins(tuple(shape), float(dx), float(dy), float(step_deg))
-    dens = np.bincount(b.ravel() + 1, weights=amp.ravel(), minlength=nb + 1)[1:]
+    dens = np.bincount(b, weights=amp.ravel(), minlength=nb + 1)[1:]
     return float((np.argmax(dens) + 0.5) * step_deg)
 
 
