@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy import fft as sfft
 from scipy import ndimage
+from test_texture_speed import pavement  # the same pavement-like fields as the texture speed tests
 
 from skidsim.surface import Surface
 from skidsim.texture import features, filters, furrows, height, hybrid, pairwise, quality
@@ -18,20 +19,10 @@ from skidsim.texture.features import feature_parameters, pruning_threshold
 desp = importlib.import_module("skidsim.texture.despeckle")  # the package exports the function of that name
 
 
-def field(rows, cols, seed, quantum=0.0, corr=3.0):
-    """Negatively skewed pavement-like heights (mm); ``quantum`` rounds them to codes (ties, plateaus)."""
-    rng = np.random.default_rng(seed)
-    f = ndimage.gaussian_filter(rng.standard_normal((rows, cols)), corr)
-    z = 0.6 * np.minimum(f / f.std(), 0.7) + 0.02 * rng.standard_normal((rows, cols))
-    if quantum:
-        z = np.round(z / quantum) * quantum
-    return z - z.mean()
-
-
 FIELDS = {
-    "continuous": lambda: field(97, 131, 1),
-    "coded (ties, plateaus)": lambda: field(120, 150, 2, quantum=0.01),
-    "coarse codes": lambda: field(60, 85, 3, quantum=0.1),
+    "continuous": lambda: pavement(97, 131, 1, corr=3.0),
+    "coded (ties, plateaus)": lambda: pavement(120, 150, 2, corr=3.0, quantum=0.01),
+    "coarse codes": lambda: pavement(60, 85, 3, corr=3.0, quantum=0.1),
     "white noise": lambda: np.random.default_rng(4).standard_normal((53, 71)),
     "two columns": lambda: np.round(np.random.default_rng(7).standard_normal((40, 2)), 1),
     "two rows": lambda: np.round(np.random.default_rng(8).standard_normal((2, 40)), 1),
@@ -304,7 +295,7 @@ def test_deepest_motifs_are_the_first_critical_values(name, pct, blocks, request
 
 def test_deepest_motifs_on_a_coded_scan_with_plateaus_and_a_grown_window():
     """Long plateaus of one code and basins wider than the first window (16 points either side)."""
-    z = field(160, 220, 11, quantum=0.05, corr=12.0)
+    z = pavement(160, 220, 11, corr=12.0, quantum=0.05)
     for pct in (2.0, 5.0, 10.0):
         t = pct / 100 * float(z.max() - z.min())
         for d in (z, -z):
@@ -313,7 +304,7 @@ def test_deepest_motifs_on_a_coded_scan_with_plateaus_and_a_grown_window():
 
 @pytest.mark.parametrize("exclude_edge", [False, True])
 def test_feature_parameters_without_the_dales_segmentation(exclude_edge):
-    zc = field(120, 150, 2, quantum=0.01)
+    zc = pavement(120, 150, 2, corr=3.0, quantum=0.01)
     t = pruning_threshold(zc, 5.0, "Sz")
     dales = seg.segment(zc, t, 0.05, 0.05)
     fast = feature_parameters(zc, 0.05, 0.05, exclude_edge=exclude_edge)
