@@ -3,6 +3,7 @@
 import pandas as pd
 
 from skidsim import calibration
+from skidsim.calibration.cache import prefetch
 from skidsim.calibration.site import site_simulator
 from skidsim.friction import ExponentialDecay
 from skidsim.runlog import setup_logging, write_parquet
@@ -14,10 +15,12 @@ pred = pd.read_csv(snakemake.input.predictions)
 pred = pred[pred["site"].astype(str) == site]
 if pred.empty:
     raise RuntimeError(f"{snakemake.input.predictions}: no predicted parameters for held-out site {site}")
+speeds = [float(v) for v in snakemake.params.speeds]
+laws = [ExponentialDecay(max(r.mu_s, 0.0), max(r.mu_k, 0.0), max(r.alpha, 0.0)) for r in pred.itertuples(index=False)]
+prefetch(simulate, [(v, law) for law in laws for v in speeds])  # every model's runs in one FE batch (same SN)
 parts = []
-for row in pred.itertuples(index=False):
-    law = ExponentialDecay(max(row.mu_s, 0.0), max(row.mu_k, 0.0), max(row.alpha, 0.0))
-    df = calibration.simulate_speeds(simulate, law, [float(v) for v in snakemake.params.speeds])
+for row, law in zip(pred.itertuples(index=False), laws):
+    df = calibration.simulate_speeds(simulate, law, speeds)
     df.insert(0, "model", row.model)
     df.insert(0, "site", site)
     df["mu_s"], df["mu_k"], df["alpha"] = law.mu_s, law.mu_k, law.alpha
