@@ -1,7 +1,7 @@
 """CPU cost of the study's bisection with and without the batched look-ahead (``calibration.study.look_ahead``).
 
 Usage: ``python benchmarks/bench_study_bisection.py [--sites 3] [--first 0] [--modes none,quarters,predicted]
-[--batch-repeat 2]``. Sites of the embedded default campaign (``config/config.yaml``: seed, solver preset
+[--baseline none] [--batch-repeat 2]``. Sites of the embedded default campaign (``config/config.yaml``: seed, solver preset
 ``campaign``), each site's pavement cut from its generated clean surface with the config's mesh options (the
 workflow cuts it from the despeckled, band-separated scan: close, not the same file), its DFT values at
 20/40/60 km/h from the generated trace with the ingest's +-5 km/h local line. For every site each mode
@@ -79,12 +79,12 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sites", type=int, default=3)
     ap.add_argument("--first", type=int, default=0, help="index of the first site in the campaign design")
+    ap.add_argument("--baseline", default="none", help="the mode every other is compared with (history, CPU)")
     ap.add_argument("--modes", default="none,quarters,predicted", help="look_ahead values; predicted:N sets the depth")
     ap.add_argument("--batch-repeat", type=int, default=2, help="0: skip the batch-cost figures")
     a = ap.parse_args()
-    modes = [m.strip() for m in a.modes.split(",")]
-    if modes[0] != "none":
-        modes = ["none"] + [m for m in modes if m != "none"]
+    base_mode = a.baseline
+    modes = [base_mode] + [m for m in (m.strip() for m in a.modes.split(",")) if m != base_mode]
     sites, base = load_sites(a.first, a.sites)
     print(f"campaign preset: element {sites[0][3].element_mm} mm, slide {sites[0][3].slide_length_mm} mm; {base}")
     tot = dict.fromkeys(modes, 0.0)
@@ -106,12 +106,12 @@ def main() -> None:
                 st = res.settings
                 print(
                     f"  {site} {m:9s}: evaluations {n_it}, {res.n_steps} steps, CPU {cpu:6.2f} s; speculative "
-                    f"{st['speculative_fe_runs']} runs, {st['speculative_fe_steps']} steps; identical to none: {same}"
+                    f"{st['speculative_fe_runs']} runs, {st['speculative_fe_steps']} steps; identical to {base_mode}: {same}"
                 )
     for m in modes[1:]:
         print(
-            f"total CPU s over {len(sites)} sites: none {tot['none']:.2f}, {m} {tot[m]:.2f}, "
-            f"ratio none/{m} {tot['none'] / tot[m]:.3f}"
+            f"total CPU s over {len(sites)} sites: {base_mode} {tot[base_mode]:.2f}, {m} {tot[m]:.2f}, "
+            f"ratio {base_mode}/{m} {tot[base_mode] / tot[m]:.3f}"
         )
 
 

@@ -17,7 +17,7 @@ from skidsim.solver import SolverConfig, simulate
 from skidsim.solver.surfaces import RandomTexture, to_heightfield
 
 WALL_COLUMNS = ["wall_s_run", "fe_wall_s"]
-MODES = ("quarters", "predicted")
+MODES = ("quarters", "predicted", "stages")
 
 
 def steps_for(speed_kmh: float) -> int:
@@ -45,6 +45,14 @@ class BatchSurrogate:
     def run_batch(self, requests):
         self.batches.append(list(requests))
         return [self(v, law) for v, law in requests]
+
+
+class SpeedSurrogate(BatchSurrogate):
+    """SN = (0.7 + 0.01 v) mu(v), v in km/h: a geometric factor that depends on the speed."""
+
+    def __call__(self, speed_kmh, law):
+        out = super().__call__(speed_kmh, law)
+        return FEOutcome(sn=(0.7 + 0.01 * speed_kmh) * out.sn, n_steps=out.n_steps, wall_s=out.wall_s)
 
 
 def same(a, b) -> None:
@@ -100,6 +108,36 @@ def test_predicted_path_with_an_exact_model_wastes_nothing(tmp_path):
     assert res.settings["speculative_fe_runs"] == 0 and res.n_fe_runs == 8 == len(sim.calls)
 
 
+def test_stages_with_an_exact_model_is_two_batches(tmp_path):
+    # SN = mu(v): mu_k's predicted path (3 runs at 60 km/h), then mu_s's and alpha's predicted paths, alpha's from
+    # the value mu_s is predicted to keep: one batch of 3 + 2 runs at 20 and 40 km/h; nothing wasted, same result
+    meas, opt = HAND
+    seq = calibrate_study(BatchSurrogate(), meas, replace(opt, look_ahead="none"))
+    sim = BatchSurrogate()
+    res = calibrate_study(FECache(tmp_path / "fe.parquet", "A").wrap(sim), meas, replace(opt, look_ahead="stages"))
+    assert [sorted({v for v, _ in b}) for b in sim.batches] == [[60.0], [20.0, 40.0]]
+    assert [len(b) for b in sim.batches] == [3, 5] and res.n_fe_runs == 8 == len(sim.calls)
+    assert res.settings["speculative_fe_runs"] == 0
+    same(seq, res)
+
+
+def test_stages_after_a_wrong_prediction_is_the_sequential_bisection(tmp_path):
+    # SN = g(v) mu(v) with g growing with speed: the paths predicted with the g of the last evaluation miss; the
+    # searches look ahead again, the unused runs of every search are withdrawn and counted, the result is the
+    # sequential one
+    meas, opt = HAND
+    seq = calibrate_study(SpeedSurrogate(), meas, replace(opt, look_ahead="none"))
+    sim = SpeedSurrogate()
+    cache = FECache(tmp_path / "fe.parquet", "A")
+    res = calibrate_study(cache.wrap(sim), meas, replace(opt, look_ahead="stages"))
+    same(seq, res)
+    st = res.settings
+    assert len(sim.batches) > 1 and st["speculative_fe_runs"] > 0
+    assert len(sim.calls) == res.n_fe_runs + st["speculative_fe_runs"]
+    assert sum(steps_for(v) for v, _ in sim.calls) == res.n_steps + st["speculative_fe_steps"]
+    assert not cache._fresh, "unused runs are withdrawn, not left to be answered later"
+
+
 @pytest.mark.parametrize("mode", MODES)
 def test_rerun_and_resume_from_the_cache_are_identical(tmp_path, mode):
     meas, opt = EXHAUST
@@ -138,7 +176,7 @@ def test_withdraw_without_batching_returns_nothing():
 
 
 def test_look_ahead_options():
-    assert StudyOptions().look_ahead in ("none", "quarters", "predicted")
+    assert StudyOptions().look_ahead == "stages"
     with pytest.raises(ConfigError, match=r"calibration\.study\.look_ahead: expected"):
         StudyOptions(look_ahead="both")
     with pytest.raises(ConfigError, match=r"calibration\.study\.look_ahead_depth: expected an integer >= 1"):

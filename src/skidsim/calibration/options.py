@@ -80,8 +80,10 @@ class StudyOptions:
         sequential bisection bit for bit, only the CPU time and the unused runs (``speculative_fe_*`` in the
         result's settings) differ. ``"none"``: one run per iteration; ``"quarters"``: the midpoint with both
         quarter points (one is the next midpoint); ``"predicted"``: the midpoints of the next
-        ``look_ahead_depth`` iterations along the path predicted by ``SN = g mu(v)`` (docs/calibration.md).
-    look_ahead_depth: iterations announced at once by ``look_ahead="predicted"`` (1: none).
+        ``look_ahead_depth`` iterations along the path predicted by ``SN = g mu(v)`` (docs/calibration.md);
+        ``"stages"``: ``"predicted"``, and at the start of each later search the predicted paths of it and of the
+        searches after it (from the values the earlier ones are predicted to keep) announced as one batch.
+    look_ahead_depth: iterations announced at once per search by ``look_ahead="predicted"`` / ``"stages"`` (1: none).
     """
 
     start: tuple[float, float, float] = STUDY_START
@@ -90,7 +92,7 @@ class StudyOptions:
     max_iter: int = 8
     on_max_iter: str = "flag"
     window_kmh: float | None = None
-    look_ahead: str = "predicted"
+    look_ahead: str = "stages"
     look_ahead_depth: int = 8
 
     def __post_init__(self):
@@ -109,9 +111,9 @@ class StudyOptions:
             raise ConfigError(f"{where}.on_max_iter: expected 'flag' or 'raise', got {self.on_max_iter!r}")
         if self.window_kmh is not None:
             _positive(f"{where}.window_kmh", self.window_kmh)
-        if self.look_ahead not in ("none", "quarters", "predicted"):
+        if self.look_ahead not in ("none", "quarters", "predicted", "stages"):
             raise ConfigError(
-                f"{where}.look_ahead: expected 'none', 'quarters' or 'predicted', got {self.look_ahead!r}"
+                f"{where}.look_ahead: expected 'none', 'quarters', 'predicted' or 'stages', got {self.look_ahead!r}"
             )
         d = self.look_ahead_depth
         if isinstance(d, bool) or not isinstance(d, int) or d < 1:

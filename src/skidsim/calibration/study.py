@@ -15,12 +15,16 @@ search stops when ``|SN_sim - SN_measured| / SN_measured < tol`` (10 %). Convent
 * **Max iterations.** ``max_iter`` FE evaluations per parameter. When a search exhausts it, ``on_max_iter="flag"``
   keeps the evaluated value with the smallest ``|error|``, records a message naming the parameter, speed, interval
   and last error, marks the result not converged and goes on; ``"raise"`` raises :class:`CalibrationError`.
-* **Look-ahead** (``look_ahead``, default ``"predicted"``). The FE runs of later iterations are announced with
+* **Look-ahead** (``look_ahead``, default ``"stages"``). The FE runs of later iterations are announced with
   this one's (:func:`~skidsim.calibration.cache.prefetch`: one batch of runs at the same speed for a simulator
   that batches); the evaluations, decisions, history, law and messages are those of the sequential bisection
   bit for bit. Announced runs the bisection did not use are withdrawn and counted in the result's ``settings``
   (``speculative_fe_runs``, ``speculative_fe_steps``, ``speculative_fe_steps_run``, ``speculative_fe_wall_s``
-  in s), not in its history, ``n_fe_runs`` or ``n_steps`` (the cost of the study's method).
+  in s), not in its history, ``n_fe_runs`` or ``n_steps`` (the cost of the study's method). ``"stages"``
+  (default) is ``"predicted"`` for the first search; at the start of each later one whose first midpoint was not
+  announced it announces the predicted paths of that search and of all after it (each from the value the one
+  before is predicted to keep, with the ``g`` measured so far) as one batch: ``mu_s`` at 20 km/h and ``alpha`` at
+  40 km/h run together.
 """
 
 from __future__ import annotations
@@ -60,8 +64,11 @@ def calibrate_study(
     ev = Evaluator(simulate, "study")
     spec = _Speculative()
     messages = []
-    for name, speed in order:
-        msg = _search(ev, current, name, float(speed), meas[float(speed)], opt, spec)
+    ahead: dict[tuple[float, ExponentialDecay], str] = {}  # announced, not yet evaluated -> its search
+    for k, (name, speed) in enumerate(order):
+        if opt.look_ahead == "stages" and ev.rows:
+            _announce_stages(ev, current, order[k:], meas, opt, ahead)
+        msg = _search(ev, current, name, float(speed), meas[float(speed)], opt, spec, ahead)
         if msg is not None:
             messages.append(msg)
     converged = not messages
@@ -79,25 +86,33 @@ def calibrate_study(
 
 
 def _search(
-    ev: Evaluator, current: dict, name: str, speed: float, target: float, opt: StudyOptions, spec: _Speculative
+    ev: Evaluator,
+    current: dict,
+    name: str,
+    speed: float,
+    target: float,
+    opt: StudyOptions,
+    spec: _Speculative,
+    ahead: dict[tuple[float, ExponentialDecay], str],
 ) -> str | None:
     """Bisect ``name`` at ``speed`` (km/h) toward the measured ``target``; sets ``current[name]``. Returns None when
     the tolerance was met, else the message naming the exhausted search (or raises, ``on_max_iter="raise"``).
 
     With ``opt.look_ahead`` the midpoints of later iterations are announced to the simulator together with this
-    one's (:func:`_look_ahead`); the sequence evaluated is the same, the announced points not evaluated are
-    withdrawn at the end and counted in ``spec``."""
+    one's (:func:`_look_ahead`); the sequence evaluated is the same, the announced points of this search not
+    evaluated are withdrawn at its end and counted in ``spec``. ``ahead``: the announced requests not yet
+    evaluated, each with the search it was announced for (shared by the searches of one calibration)."""
     lo, hi = (float(x) for x in opt.intervals[name])
     tried: list[tuple[float, float]] = []  # (value, rel_err)
-    ahead: set[tuple[float, ExponentialDecay]] = set()  # announced, not yet evaluated
     try:
         for it in range(1, int(opt.max_iter) + 1):
             mid = 0.5 * (lo + hi)
             trial = dict(current, **{name: mid})
             law = ExponentialDecay(**trial)
             if opt.look_ahead != "none" and (speed, law) not in ahead:
-                ahead |= _look_ahead(ev, current, name, speed, target, opt, lo, hi, it)
-            ahead.discard((speed, law))
+                for request in _look_ahead(ev, current, name, speed, target, opt, lo, hi, it):
+                    ahead.setdefault(request, name)
+            ahead.pop((speed, law), None)
             out = ev(speed, law, stage=name, iteration=it, sn_measured=target, lo=lo, hi=hi)
             err = out.sn / target - 1.0
             tried.append((mid, err))
@@ -106,7 +121,10 @@ def _search(
                 return None
             lo, hi = _next_interval(name, trial, err, lo, hi)
     finally:
-        spec.withdraw(ev, ahead)
+        mine = [r for r, stage in ahead.items() if stage == name]
+        for r in mine:
+            del ahead[r]
+        spec.withdraw(ev, mine)
     best_val, best_err = min(tried, key=lambda t: abs(t[1]))
     msg = (
         f"study bisection: {name} at {speed:g} km/h did not reach |SN_sim - SN_measured|/SN_measured "
@@ -153,22 +171,78 @@ def _look_ahead(
         mid = 0.5 * (lo + hi)
         points = [mid] + ([0.5 * (lo + mid), 0.5 * (mid + hi)] if it < opt.max_iter else [])
     else:
-        g = _latest_sn_factor(ev)
-        a, b = lo, hi
-        for _ in range(min(int(opt.look_ahead_depth), int(opt.max_iter) - it + 1)):
-            x = 0.5 * (a + b)
-            points.append(x)
-            trial = dict(current, **{name: x})
-            err = g * float(ExponentialDecay(**trial).mu_kmh(speed)) / target - 1.0
-            if abs(err) < opt.tol:
-                break
-            a, b = _next_interval(name, trial, err, a, b)
+        depth = min(int(opt.look_ahead_depth), int(opt.max_iter) - it + 1)
+        points, _ = _predicted_path(current, name, speed, target, opt, lo, hi, _latest_sn_factor(ev), depth)
     requests = [(speed, ExponentialDecay(**dict(current, **{name: x}))) for x in points]
     if len(requests) > 1:
         t0 = time.perf_counter()
         prefetch(ev.simulate, requests)
         ev.sim_wall += time.perf_counter() - t0  # the batch's time is simulator time
     return set(requests)
+
+
+def _predicted_path(
+    current: dict,
+    name: str,
+    speed: float,
+    target: float,
+    opt: StudyOptions,
+    lo: float,
+    hi: float,
+    g: float,
+    depth: int,
+) -> tuple[list[float], float]:
+    """The midpoints (at most ``depth``) the bisection of ``name`` on [lo, hi] evaluates if ``SN = g mu(v)``,
+    ending at the first one within the tolerance, and the value the search then keeps (that point, or the one of
+    smallest predicted error when none is within the tolerance)."""
+    points: list[float] = []
+    errs: list[float] = []
+    a, b = lo, hi
+    for _ in range(depth):
+        x = 0.5 * (a + b)
+        trial = dict(current, **{name: x})
+        err = g * float(ExponentialDecay(**trial).mu_kmh(speed)) / target - 1.0
+        points.append(x)
+        errs.append(abs(err))
+        if abs(err) < opt.tol:
+            break
+        a, b = _next_interval(name, trial, err, a, b)
+    return points, points[min(range(len(points)), key=errs.__getitem__)]
+
+
+def _announce_stages(
+    ev: Evaluator,
+    current: dict,
+    order: Sequence[tuple[str, float]],
+    meas: dict,
+    opt: StudyOptions,
+    ahead: dict[tuple[float, ExponentialDecay], str],
+) -> None:
+    """``look_ahead="stages"``, before a search that follows an evaluation: unless its first midpoint was announced
+    already, announce the predicted paths (``SN = g mu(v)``, ``g`` of the latest evaluation) of it and of the
+    searches after it, each from the value the one before is predicted to keep, as one batch; adds them to
+    ``ahead`` (each with its search)."""
+    name0, speed0 = order[0]
+    lo0, hi0 = (float(x) for x in opt.intervals[name0])
+    if (float(speed0), ExponentialDecay(**dict(current, **{name0: 0.5 * (lo0 + hi0)}))) in ahead:
+        return
+    g = _latest_sn_factor(ev)
+    cur = dict(current)
+    new: dict[tuple[float, ExponentialDecay], str] = {}
+    depth = min(int(opt.look_ahead_depth), int(opt.max_iter))
+    for name, speed in order:
+        lo, hi = (float(x) for x in opt.intervals[name])
+        points, keep = _predicted_path(cur, name, float(speed), meas[float(speed)], opt, lo, hi, g, depth)
+        for x in points:
+            request = (float(speed), ExponentialDecay(**dict(cur, **{name: x})))
+            if request not in ahead:
+                new.setdefault(request, name)
+        cur[name] = keep
+    if len(new) > 1:
+        t0 = time.perf_counter()
+        prefetch(ev.simulate, list(new))
+        ev.sim_wall += time.perf_counter() - t0  # the batch's time is simulator time
+        ahead.update(new)
 
 
 def _latest_sn_factor(ev: Evaluator) -> float:
