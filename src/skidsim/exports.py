@@ -381,6 +381,7 @@ def write_inp(
     title: str | None = None,
     push_increments: int = 40,
     stick_slope_pa_per_m: float | None = None,
+    _shared: dict | None = None,
 ) -> InpDeck:
     """Write an ABAQUS/CalculiX input deck of the DFT slider on the pavement (SI: m, N, Pa, kg/m^3, s).
 
@@ -425,6 +426,9 @@ def write_inp(
     reaction of the pavement nodes (``*NODE PRINT, NSET=PAVE_ALL, TOTALS=ONLY``: RF), the slider displacements
     (U, with the holder's in it) and the contact stresses (``*CONTACT PRINT``: CSTR); read them with
     :func:`parse_push_history`.
+
+    ``_shared`` (private, speed only): a dict that the decks of one pavement share (:func:`write_model_bundle`);
+    the pavement's node and element lines, the same in every deck, are formatted once into it.
     """
     slide_distance_m, stick_slope_pa_per_m = _checked_inp_options(
         step, dialect, holder, contact, load_n, element_type, push_increments, slide_distance_m, stick_slope_pa_per_m
@@ -440,7 +444,7 @@ def write_inp(
     m = _inp_numbering(slider, hf, off)
     interaction, mu_eq, notes = _inp_interaction(step, dialect, contact, law, v_ms, kpen, stick_slope_pa_per_m)
     text = (
-        _inp_model(m, slider, hf, off, step, dialect, element_type, title, mat)
+        _inp_model(m, slider, hf, off, step, dialect, element_type, title, mat, _shared)
         + interaction
         + _inp_steps(m, step, dialect, holder, load_n, slide_distance_m, v_ms, push_increments)
     )
@@ -566,8 +570,11 @@ def _inp_numbering(slider: SliderMesh, hf: Heightfield, off) -> dict:
     }
 
 
-def _inp_model(m: dict, slider: SliderMesh, hf: Heightfield, off, step, dialect, element_type, title, mat) -> str:
-    """The heading, nodes, elements, sets, surfaces, materials and sections of the deck."""
+def _inp_model(
+    m: dict, slider: SliderMesh, hf: Heightfield, off, step, dialect, element_type, title, mat, shared=None
+) -> str:
+    """The heading, nodes, elements, sets, surfaces, materials and sections of the deck; ``shared``: see
+    :func:`write_inp` (the pavement blocks depend only on the heightfield and the slider's node count)."""
     sp, s_ids, ppts, p_ids, e_slider, conn_s, e_pave, conn_p, bottom_elems, top_ids, ref = (
         m["sp"],
         m["s_ids"],
@@ -593,11 +600,18 @@ def _inp_model(m: dict, slider: SliderMesh, hf: Heightfield, off, step, dialect,
     w("*NODE, NSET=SLIDER_ALL\n")
     w(_fmt_rows(s_ids, sp))
     w("*NODE, NSET=PAVE_ALL\n")
-    w(_fmt_rows(p_ids, ppts))
+    key = (id(hf), slider.n_nodes)
+    if shared is None or shared.get("key") != key:
+        blocks = {"nodes": _fmt_rows(p_ids, ppts), "elements": _fmt_rows(e_pave, conn_p, "%d")}
+        if shared is not None:
+            shared.update(blocks, key=key)
+    else:
+        blocks = shared
+    w(blocks["nodes"])
     w(f"*ELEMENT, TYPE={element_type}, ELSET=SLIDER\n")
     w(_fmt_rows(e_slider, conn_s, "%d"))
     w("*ELEMENT, TYPE=C3D8, ELSET=PAVEMENT\n")
-    w(_fmt_rows(e_pave, conn_p, "%d"))
+    w(blocks["elements"])
     w("*ELSET, ELSET=SLIDER_BOTTOM_EL\n")
     w(_id_lines(bottom_elems))
     w("*NSET, NSET=SLIDER_TOP\n")
@@ -944,11 +958,13 @@ def write_model_bundle(
         "vtu_pavement": write_vtu_pavement(hf, out / "pavement.vtu", unit=unit),
         "vtu_slider": write_vtu_slider(slider, out / "slider.vtu", unit=unit),
     }
+    shared: dict = {}  # the pavement's node and element lines, formatted for the first deck only
     for key, step, dialect in (
         ("inp_static", "static", "calculix"),
         ("inp_dynamic_calculix", "dynamic", "calculix"),
         ("inp_dynamic_abaqus", "dynamic", "abaqus"),
     ):
         name = f"dft_{step}_{dialect}.inp"
-        paths[key] = write_inp(out / name, slider, hf, law, load_n, speed_kmh, step, dialect=dialect).path
+        deck = write_inp(out / name, slider, hf, law, load_n, speed_kmh, step, dialect=dialect, _shared=shared)
+        paths[key] = deck.path
     return paths

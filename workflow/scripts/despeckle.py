@@ -2,6 +2,7 @@
 invalid points. The limits come from the config (not the rule's params): changing one re-runs only the campaign's
 scan_quality rule, which applies the limits again to every site's measures."""
 
+import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim.runlog import setup_logging, write_json
 from skidsim.scans import read_scan, save_surfaces
 from skidsim.texture import TextureOptions, despeckle_detail, fill_invalid

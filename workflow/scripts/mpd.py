@@ -4,6 +4,7 @@ MPD null and one warning in the log."""
 
 import dataclasses
 
+import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim import texture
 from skidsim.runlog import setup_logging, write_json
 from skidsim.scans import load_surfaces

@@ -1,5 +1,6 @@
 """Snakemake adapter: form removal and Butterworth separation into raw, macro and micro texture."""
 
+import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim import texture
 from skidsim.runlog import setup_logging
 from skidsim.scans import load_surfaces, save_surfaces

@@ -1,5 +1,6 @@
 """Snakemake adapter: generate one synthetic site (scan X3P, DFT trace CSV, ground truth JSON)."""
 
+import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim.config import synthetic_config
 from skidsim.generators import default as synthetic
 from skidsim.runlog import setup_logging

@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 
+import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim import texture
 from skidsim.runlog import setup_logging, write_parquet
 from skidsim.scans import load_surfaces

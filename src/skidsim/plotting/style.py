@@ -43,6 +43,7 @@ def figure(path: str | Path | None = None, *, nrows: int = 1, ncols: int = 1, fi
     The file is written through :func:`skidsim.atomic.atomic_path`, so a failed figure leaves nothing behind. The
     figure belongs to no pyplot registry: there is nothing to close, it is freed with its last reference.
     """
+    _import_matplotlib()
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -54,5 +55,31 @@ def figure(path: str | Path | None = None, *, nrows: int = 1, ncols: int = 1, fi
         yield fig, axes
         if path is not None:
             fig.tight_layout()
+            # tight_layout leaves a placeholder layout engine, for which savefig draws the figure once more
+            # (renderer disabled) before drawing it; the layout is done, so no engine: the same pixels, one draw
+            fig.set_layout_engine(None)
             with atomic_path(path, suffix=".png") as tmp:
                 fig.savefig(tmp, format="png")
+
+
+def _import_matplotlib() -> None:
+    """Import matplotlib's Agg canvas, Figure and the 3-D axes, without building the property tables of the
+    ``Artist.set`` docstrings (``matplotlib.artist.kwdoc``, called for every Artist subclass as it is defined):
+    about 0.1 s of the start-up of every figure step, docstrings only (not one pixel changes). The original
+    ``kwdoc`` is put back at once; a process that imported matplotlib before keeps its docstrings."""
+    import sys
+
+    if "matplotlib.figure" in sys.modules:
+        return
+    import matplotlib.artist as artist
+
+    kwdoc = getattr(artist, "kwdoc", None)
+    if kwdoc is not None:
+        artist.kwdoc = lambda _artist: ""
+    try:
+        import matplotlib.backends.backend_agg
+        import matplotlib.figure  # noqa: F401
+        import mpl_toolkits.mplot3d  # noqa: F401
+    finally:
+        if kwdoc is not None:
+            artist.kwdoc = kwdoc

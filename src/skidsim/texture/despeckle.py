@@ -36,11 +36,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
+from skidsim._lazy import lazy_module
 from skidsim.surface import Surface
 
 from .filters import _interp_rows
+
+ndimage = lazy_module("scipy.ndimage")  # imported on first use (skidsim._lazy)
 
 METHODS = ("local", "tukey", "study", "mad")
 FRAME_METHODS = ("tukey", "study", "mad")

@@ -20,9 +20,11 @@ Conventions that change numbers (also in ``docs/texture.md``):
 from __future__ import annotations
 
 import numpy as np
-from scipy import fft as sfft
 
+from skidsim._lazy import lazy_module
 from skidsim.surface import Surface
+
+sfft = lazy_module("scipy.fft")  # imported on first use (skidsim._lazy)
 
 FILL_METHODS = ("linear", "nearest", "mean")
 

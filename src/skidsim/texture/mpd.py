@@ -289,15 +289,14 @@ def _block(z: np.ndarray, x: np.ndarray, o: MPDOptions, step: float, offset_mm: 
         if spike.any():
             res[spike] = np.nan
             _fill(res, xr)
-    from scipy import signal  # imported here: 0.8 s of start-up that only MPD needs
+    # scipy.signal's butter and sosfiltfilt, the same bits without its 0.5 s import (skidsim.texture.iir)
+    from .iir import butter2_sos, sosfiltfilt
 
     nyquist = 0.5 / step  # 1/mm
     if o.evaluation_length_m is not None:
-        sos = signal.butter(2, (1.0 / o.highpass_mm) / nyquist, btype="high", output="sos")
-        res = signal.sosfiltfilt(sos, res, axis=1)
+        res = sosfiltfilt(butter2_sos((1.0 / o.highpass_mm) / nyquist, "high"), res)
     if o.lowpass_mm:
-        sos = signal.butter(2, (1.0 / o.lowpass_mm) / nyquist, btype="low", output="sos")
-        res = signal.sosfiltfilt(sos, res, axis=1)
+        res = sosfiltfilt(butter2_sos((1.0 / o.lowpass_mm) / nyquist, "low"), res)
     # segments are contiguous runs of the sorted segment indices
     r_lo, r_hi = np.searchsorted(seg_r, ids, "left"), np.searchsorted(seg_r, ids, "right")
     x_lo, x_hi = np.searchsorted(seg_x, ids, "left"), np.searchsorted(seg_x, ids, "right")

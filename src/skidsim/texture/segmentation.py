@@ -26,7 +26,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
+
+from skidsim._lazy import lazy_module
+
+ndimage = lazy_module("scipy.ndimage")  # imported on first use (skidsim._lazy)
 
 _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 _EIGHT = np.ones((3, 3), dtype=bool)

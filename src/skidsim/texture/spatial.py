@@ -27,8 +27,11 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy import fft as sfft
-from scipy import ndimage
+
+from skidsim._lazy import lazy_module
+
+sfft = lazy_module("scipy.fft")  # imported on first use (skidsim._lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 
 @dataclass(frozen=True)
