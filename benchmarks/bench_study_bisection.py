@@ -1,8 +1,8 @@
 """CPU cost of the study's bisection with and without the batched look-ahead (``calibration.study.look_ahead``).
 
 Usage: ``python benchmarks/bench_study_bisection.py [--sites 3] [--first 0] [--modes none,quarters,predicted]
-[--baseline none] [--batch-repeat 2]``. Sites of the embedded default campaign (``config/config.yaml``: seed, solver preset
-``campaign``), each site's pavement cut from its generated clean surface with the config's mesh options (the
+[--baseline none] [--batch-repeat 2]``. Sites of the embedded default campaign (``config/config.yaml``: seed,
+solver preset ``campaign``), each site's pavement cut from its generated clean surface with the config's mesh options (the
 workflow cuts it from the despeckled, band-separated scan: close, not the same file), its DFT values at
 20/40/60 km/h from the generated trace with the ingest's +-5 km/h local line. For every site each mode
 (``predicted:N``: with ``look_ahead_depth`` N) runs the whole study calibration with a fresh :func:`fe_simulator`
@@ -106,7 +106,8 @@ def main() -> None:
                 st = res.settings
                 print(
                     f"  {site} {m:9s}: evaluations {n_it}, {res.n_steps} steps, CPU {cpu:6.2f} s; speculative "
-                    f"{st['speculative_fe_runs']} runs, {st['speculative_fe_steps']} steps; identical to {base_mode}: {same}"
+                    f"{st['speculative_fe_runs']} runs, {st['speculative_fe_steps']} steps; "
+                    f"identical to {base_mode}: {same}"
                 )
     for m in modes[1:]:
         print(
