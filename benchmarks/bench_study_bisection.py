@@ -1,17 +1,17 @@
 """CPU cost of the study's bisection with and without the batched look-ahead (``calibration.study.look_ahead``).
 
 Usage: ``python benchmarks/bench_study_bisection.py [--sites 3] [--first 0] [--modes none,quarters,predicted]
-[--baseline none] [--batch-repeat 2]``. Sites of the embedded default campaign (``config/config.yaml``: seed,
-solver preset ``campaign``), each site's pavement cut from its generated clean surface with the config's mesh options (the
-workflow cuts it from the despeckled, band-separated scan: close, not the same file), its DFT values at
-20/40/60 km/h from the generated trace with the ingest's +-5 km/h local line. For every site each mode
-(``predicted:N``: with ``look_ahead_depth`` N) runs the whole study calibration with a fresh :func:`fe_simulator`
-(no cache) in this process, the modes interleaved per site; CPU s are ``time.process_time`` with one BLAS thread.
-Prints per site and mode: the evaluations per search, CPU s, speculative runs (announced, not evaluated), the
-check that history (without wall times), parameters and message equal those of ``"none"`` (today's sequential
-bisection); then the totals and the ratio ``none / mode``. First, the CPU s of a batch of 2-8 runs at 60 km/h on
-the first site relative to one run (same speed, different mu_k; fastest of ``--batch-repeat``).
-Timings on a shared machine are disturbed by other processes: report them with that caveat.
+[--baseline none] [--batch-repeat 2]``. Sites of the embedded default campaign (``config/config.yaml``: seed, solver
+preset ``campaign``), each site's pavement cut from its generated clean surface with the config's mesh options (the
+workflow cuts it from the despeckled, band-separated scan: close, not the same file), its DFT values at 20/40/60
+km/h from the generated trace with the ingest's +-5 km/h local line. For every site each mode (``predicted:N``: with
+``look_ahead_depth`` N) runs the whole study calibration with a fresh :func:`fe_simulator` (no cache) in this
+process, the modes interleaved per site; CPU s are ``time.process_time`` with one BLAS thread. Prints per site and
+mode: the evaluations per search, CPU s, speculative runs (announced, not evaluated), the check that history
+(without wall times), parameters and message equal those of ``"none"`` (today's sequential bisection); then the
+totals and the ratio ``none / mode``. First, the CPU s of a batch of 2-8 runs at 60 km/h on the first site relative
+to one run (same speed, different mu_k; fastest of ``--batch-repeat``). Timings on a shared machine are disturbed by
+other processes: report them with that caveat.
 """
 
 from __future__ import annotations
