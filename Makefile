@@ -15,6 +15,9 @@ $(STAMP): requirements.lock pyproject.toml
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -r requirements.lock
 	$(BIN)/python -m pip install -q --no-deps -e .
+	@# byte-compile the package now: where PYTHONDONTWRITEBYTECODE is set (as on this workplace's machines) every job
+	@# would compile the modules it imports again (up to 0.1 s of CPU per job; a default run has 457 jobs)
+	$(BIN)/python -m compileall -q src
 	@touch $@
 
 $(TEST_STAMP): $(STAMP) requirements-test.lock requirements-test-nodeps.lock
