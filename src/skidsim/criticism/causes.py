@@ -29,9 +29,10 @@ class Cause:
     term acts on every bin of a site), used to rank significant causes: comparable across kinds and levels;
     ``z``: (T - mean T_perm) / sd T_perm (standardised statistic); ``group``: numeric candidates with
     |Pearson r| >= corr_group across sites (itself included), or for texture parameters the members of its
-    texture cluster; ``significant``: p_adjusted <= fdr and cv_gain > 0. ``family``: "primary" (functional form
-    and the physical hypotheses: temperature, MPD x speed), "secondary" (every other candidate) or "child" (the
-    texture model x speed between sites, asked only under a significant section x speed effect:
+    texture cluster; ``significant``: p_adjusted <= fdr and cv_gain > 0, or named for a significant section
+    effect by rule 3b of the naming rule (``explains``; :func:`section_explanations`). ``family``: "primary"
+    (functional form and the physical hypotheses: temperature, MPD x speed), "secondary" (every other candidate)
+    or "child" (the texture model x speed between sites, asked only under a significant section x speed effect:
     :func:`skidsim.criticism.screening.texture_speed_tests`); ``unit``: the
     tested unit (the variable itself, or ``cluster:<representative>`` for a texture cluster tested by its
     max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster);
@@ -44,7 +45,11 @@ class Cause:
     ``1 - SS_sec(residual net of the candidate) / SS_sec(residual)``
     (:func:`skidsim.criticism.texture_candidate.section_share`; NaN where not computed); ``section_share_main``:
     the same for the site means (between sites); ``section_id``: the candidate is section identity; ``label``:
-    what the report names (``section (unexplained)``, or the texture model in words; empty: the variable).
+    what the report names (``section (unexplained)``, or the texture model in words; empty: the variable);
+    ``section_rest_p``: for a section-level column, the permutation p of the section effect left beyond it
+    (:func:`skidsim.criticism.screening.section_rest_tests`; NaN elsewhere); ``explains``: the section effect
+    (``section (<level>, <kind>)``) a section-level column is named for by rule 3b of :func:`section_rule`, which
+    makes it significant although its own p_adjusted is above fdr (empty otherwise).
     """
 
     variable: str
@@ -74,6 +79,8 @@ class Cause:
     section_share_main: float = float("nan")
     section_id: bool = False
     label: str = ""
+    section_rest_p: float = float("nan")
+    explains: str = ""
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -145,6 +152,7 @@ def make_causes(tests, adjustment, candidates, options, n_permutations: int) -> 
                 section_share_main=float(t.section_share_main),
                 section_id=bool(t.section_id),
                 label=_label(t, candidates.mpd),
+                section_rest_p=float(getattr(t, "section_rest_p", float("nan"))),
             )
         )
     return causes
@@ -311,6 +319,8 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
       ``share_min`` of S through its test at L (:func:`_column_explains`: of kind K, or of any kind when K is
       ``main``; the column itself may be significant at another level or kind) moves right above S (the one with
       the largest share);
+    * (rule 3b, :func:`section_explanations`, applied by :func:`rank_causes` before the ranking: a section-level
+      column that carries S and leaves nothing beyond it is significant by then and counts as such a column);
     * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
       ``section (unexplained)``; it then ranks below a texture explanation of another section effect of its level
       (:func:`_texture_above_unexplained`).
@@ -353,11 +363,62 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
     return causes
 
 
-def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None) -> list[Cause]:
-    """Significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
+def section_explanations(causes: list[Cause], fdr: float, share_min: float = SECTION_SHARE_MIN) -> list[Cause]:
+    """Rule 3b of the naming rule of a section effect: the section-level column that explains a significant
+    section effect S (level L, kind K) is named for it although its own test does not pass the multiplicity
+    control of the section-level columns, when
+
+    * no texture cause explains at least ``share_min`` of S (rule 2 has precedence);
+    * of the section-level sites.csv columns of L and K it explains the largest share of S, at least ``share_min``,
+      and no significant column explains a larger share (rule 3 would name that one);
+    * its own exact permutation test over the sections (the nested permutations) has ``p_value <= fdr``, and it
+      predicts held-out sections (``cv_gain > 0``);
+    * no section effect is left beyond it: ``section_rest_p > fdr``
+      (:func:`skidsim.criticism.screening.section_rest_tests`).
+
+    Why: S is the discovery (its p_adjusted passed the false-discovery control); the column is its description.
+    With 12 sections, a column whose one level of 3 sections carries the effect cannot reach a permutation p below
+    about 4 / C(12, 3) = 1 / 55 (the arrangements that keep those sections in one level), while the child family of
+    the 7 section-level columns asks p <= fdr / 7 of the first; labelling S ``section (unexplained)`` when one
+    column carries it and nothing is left beyond it misnames it. The column is returned with ``significant`` True
+    and ``explains`` = ``section (L, K)``; its p_value and p_adjusted are unchanged (the report shows both)."""
+    out = list(causes)
+    for S in [c for c in out if c.section_id and c.significant]:
+        L, K = S.level, S.kind
+        if any(_explanation(c, S, True, share_min) for c in out):
+            continue
+        cols = [
+            c
+            for c in out
+            if c.level == L
+            and c.kind == K
+            and c.section_level
+            and not c.section_id
+            and c.source == "sites"
+            and np.isfinite(c.section_share)
+        ]
+        if not cols:
+            continue
+        best = max(cols, key=lambda c: c.section_share)
+        sig = [v for c in out if np.isfinite(v := _column_explains(c, S, out, share_min))]
+        if (
+            best.significant
+            or (sig and max(sig) > best.section_share)
+            or not (best.section_share >= share_min and best.p_value <= fdr and best.cv_gain > 0.0)
+            or not (np.isfinite(best.section_rest_p) and best.section_rest_p > fdr)
+        ):
+            continue
+        out[_pos(out, best)] = replace(best, significant=True, explains=f"section ({L}, {K})")
+    return out
+
+
+def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr: float = 0.05) -> list[Cause]:
+    """Rule 3b of the naming rule of a section effect first (:func:`section_explanations`, at ``fdr``); then
+    significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
     ``z``; then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
     (:func:`section_rule`), MPD x speed above the texture clusters holding MPD, the within-site functional form
     below a significant within-site covariate x speed."""
+    causes = section_explanations(causes, fdr)
     causes = sorted(causes, key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     causes = order_by_refinement(causes, cov)
     causes = section_rule(causes)

@@ -92,6 +92,16 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         + (f"; tested beyond the texture ({_conditioned_on(top, gain)})" if top.get("texture_pcs", -1) >= 0 else "")
         + ".",
         "",
+    ]
+    if top.get("explains"):
+        lines += [
+            f"Named as the explanation of the significant `{top['explains']}` effect (rule 3b of the naming rule): "
+            f"it explains {top['section_share']:.0%} of it, its own permutation test over the sections has p = "
+            f"{top['p_value']:.2g} (p_adj above fdr over the section-level columns), and no section effect is left "
+            f"beyond it (p = {top['section_rest_p']:.2g}).",
+            "",
+        ]
+    lines += [
         f"Extension applied: **{gain.get('extension')}**"
         + (f"; FE hook: {gain['fe_hook']['solver_flags']}" if gain.get("fe_hook") else "")
         + ".",

@@ -33,7 +33,7 @@ from .crossval import cv_sse, cv_sse_design, folds, is_section_nested
 from .extensions import ifi_speed_constant_kmh
 from .fdr import adjust, family_sizes, permutation_count
 from .options import DiagnosisOptions
-from .permutations import nested_permutations, perm_stats, site_permutations
+from .permutations import nested_permutations, perm_stats, permutation_p, site_permutations
 from .residuals import LEVELS, level_matrix, require_columns, texture_model_shape
 from .texture_candidate import TextureMember, member_basis, section_share, texture_members
 
@@ -64,6 +64,7 @@ class CandidateTest:
     section_share_main: float = float("nan")
     section_id: bool = False
     words: str = ""
+    section_rest_p: float = float("nan")
 
 
 @dataclass
@@ -365,6 +366,44 @@ def section_shares(ctx: LevelContext, tests: list[CandidateTest]) -> None:
             t.section_share_main = section_share(Q, ctx.Ys["main"], ctx.sec)
 
 
+def section_rest_tests(ctx: LevelContext, tests: list[CandidateTest], chunk: int = 512) -> None:
+    """For every section-level column (not section identity; residual test) of one level: is a section effect left
+    beyond the column? The statistic is the between-section sum of squares of the tested residual net of the
+    column's basis, ``SS_sec((I - Q Q') Y)``, the part of section identity's statistic the column does not carry;
+    its p-value (``section_rest_p``) is Freedman & Lane (1983): the reduced model's residuals ``(I - Q Q') Y``
+    permuted over the sites by section identity's own free site permutations (no new draws; the null is no
+    section effect beyond the column, under which the sites are exchangeable apart from the column's groups).
+    Used by the naming rule of a section effect (:func:`skidsim.criticism.causes.section_rule`, rule 3b). In
+    place."""
+    secs, inv = np.unique(ctx.sec, return_inverse=True)
+    G = np.zeros((ctx.n, len(secs)))
+    G[np.arange(ctx.n), inv] = 1.0
+    G /= np.sqrt(G.sum(axis=0))
+    P = ctx.perm_site.shape[0]
+    for t in tests:
+        Q = ctx.bases.get(t.variable)
+        if (
+            Q is None
+            or Q.shape[1] == 0
+            or not ctx.section_level.get(t.variable, False)
+            or ctx.is_section_id.get(t.variable, False)
+            or t.texture_pcs >= 0
+            or t.kind not in ctx.Ys
+        ):
+            continue
+        Y = ctx.Ys[t.kind]
+        R = Y - Q @ (Q.T @ Y)
+        A = G.T @ R
+        T = float((A * A).sum())
+        Tp = np.empty(P)
+        for a in range(0, P, chunk):
+            Rp = R[ctx.perm_site[a : a + chunk]]  # (c, n, S)
+            Rp = Rp - np.einsum("nq,pqs->pns", Q, np.einsum("nq,pns->pqs", Q, Rp))
+            B = np.einsum("ng,pns->pgs", G, Rp)
+            Tp[a : a + chunk] = (B * B).sum(axis=(1, 2))
+        t.section_rest_p = float(permutation_p(T, Tp))
+
+
 def texture_model_tests(ctx: LevelContext, members: list[TextureMember], kind: str = "main") -> list[CandidateTest]:
     """The texture model as a candidate cause between sites: each richer texture model
     (:func:`~skidsim.criticism.texture_candidate.texture_members`) tested against the residual of ``kind`` (the
@@ -545,6 +584,7 @@ def screen_candidates(
         texture_beyond_lead(ctx, cands, texture_lead)
         cov_tests = covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
         section_shares(ctx, cov_tests)
+        section_rest_tests(ctx, cov_tests)
         tests += cov_tests
         members = _members(ctx, cands, texture_pc_scores, texture_lead)
         tests += texture_model_tests(ctx, members)
@@ -557,4 +597,4 @@ def screen_candidates(
     causes = make_causes(tests, adjustment, cands, options, P)
     if between is not None:
         causes += texture_speed_tests(*between, causes, cands, options, P)
-    return rank_causes(causes, cands.covariates, cands.mpd)
+    return rank_causes(causes, cands.covariates, cands.mpd, fdr=options.fdr)
