@@ -174,11 +174,16 @@ def _look_ahead(
         depth = min(int(opt.look_ahead_depth), int(opt.max_iter) - it + 1)
         points, _ = _predicted_path(current, name, speed, target, opt, lo, hi, _latest_sn_factor(ev), depth)
     requests = [(speed, ExponentialDecay(**dict(current, **{name: x}))) for x in points]
+    _prefetch(ev, requests)
+    return set(requests)
+
+
+def _prefetch(ev: Evaluator, requests: list) -> None:
+    """Announce ``requests`` (more than one: a batch) to the simulator; the batch's time is simulator time."""
     if len(requests) > 1:
         t0 = time.perf_counter()
         prefetch(ev.simulate, requests)
-        ev.sim_wall += time.perf_counter() - t0  # the batch's time is simulator time
-    return set(requests)
+        ev.sim_wall += time.perf_counter() - t0
 
 
 def _predicted_path(
@@ -239,9 +244,7 @@ def _announce_stages(
                 new.setdefault(request, name)
         cur[name] = keep
     if len(new) > 1:
-        t0 = time.perf_counter()
-        prefetch(ev.simulate, list(new))
-        ev.sim_wall += time.perf_counter() - t0  # the batch's time is simulator time
+        _prefetch(ev, list(new))
         ahead.update(new)
 
 
