@@ -8,6 +8,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 import pandas as pd
 
+from .options import DiagnosisOptions
+
 #: The naming rule of a section effect: a candidate is named for it only when it explains at least this share of
 #: the section effect's sum of squares (:func:`section_rule`).
 SECTION_SHARE_MIN = 0.5
@@ -412,12 +414,15 @@ def section_explanations(causes: list[Cause], fdr: float, share_min: float = SEC
     return out
 
 
-def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr: float = 0.05) -> list[Cause]:
-    """Rule 3b of the naming rule of a section effect first (:func:`section_explanations`, at ``fdr``); then
+def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr: float | None = None) -> list[Cause]:
+    """Rule 3b of the naming rule of a section effect first (:func:`section_explanations`, at ``fdr``; None: the
+    default of :class:`~skidsim.criticism.options.DiagnosisOptions`); then
     significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
     ``z``; then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
     (:func:`section_rule`), MPD x speed above the texture clusters holding MPD, the within-site functional form
     below a significant within-site covariate x speed."""
+    if fdr is None:
+        fdr = DiagnosisOptions().fdr
     causes = section_explanations(causes, fdr)
     causes = sorted(causes, key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     causes = order_by_refinement(causes, cov)
