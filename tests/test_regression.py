@@ -224,7 +224,7 @@ def test_cv_never_sees_the_held_out_section():
     held = groups == "E03"
     Y2 = Y.copy()
     Y2.loc[held, :] += 10.0  # wildly different friction in one section
-    pert = R.cross_validated_predictions(X, Y2, groups, models, workers=2)  # threads: same numbers, same order
+    pert = R.cross_validated_predictions(X, Y2, groups, models, workers=2)  # processes: same numbers, same order
     in_held = base["section"] == "E03"
     cols = ["mu_s", "alpha"]
     np.testing.assert_array_equal(base.loc[in_held, cols].to_numpy(), pert.loc[in_held, cols].to_numpy())
@@ -461,7 +461,7 @@ def test_run_analysis_and_write_analysis(tmp_path):
 
 
 def test_cv_threads_give_identical_predictions():
-    """workers=2 (thread pool over model x section) returns bit-identical rows in the same order as workers=1."""
+    """workers=2 (process pool over model x section) returns bit-identical rows in the same order as workers=1."""
     X, groups, rng = independent_campaign(n_sections=5, p=10, seed=3)
     Y = pd.DataFrame({"mu_s": 0.5 + 0.05 * X["micro_Sq"] + 0.01 * rng.normal(size=len(X))}, index=X.index)
     models = ("pca", "ridge", "lasso", "pls")

@@ -64,9 +64,10 @@ def cross_validated_predictions(
     """Out-of-section predictions: for every section, each model is fitted on all other sections (hyper-
     parameters by inner leave-one-section-out CV on those) and predicts the held-out section's parameters.
 
-    ``workers`` > 1 fits the (model, section) pairs in a thread pool: the fits are independent and seeded, the
-    rows are assembled in the same order, so the result is identical to ``workers=1``; the time goes into
-    scikit-learn's lasso coordinate descent (90 % of a default run's regression), which releases the GIL.
+    ``workers`` > 1 fits the (model, section) pairs in that many forked processes (:func:`_in_processes`): the
+    fits are independent and seeded, the rows are assembled in the same order, so the result is identical to
+    ``workers=1`` (tested). A thread pool gained only 1.2x on 2 cores: beside scikit-learn's lasso coordinate
+    descent (about 60 % of the time, without the GIL) the fits are Python and pandas under the GIL.
     ``dft``: the DFT targets of the ``<model>@dft`` models (:func:`~.targets.dft_targets`, one row per site;
     default ``g * mu(v)`` of ``Y`` at :data:`~.targets.DEFAULT_SPEEDS_KMH`), ``g`` the geometric factors (None: 1)
     for their laws. Returns long form: site, section, model, and one predicted column per column of ``Y``;
@@ -79,35 +80,54 @@ def cross_validated_predictions(
     if dft is not None:
         dft = _aligned_dft(dft, X)
 
-    def one(model, sec):
-        te = (grp == sec).to_numpy()
-        tr = ~te
-        pred = predict_parameters(
-            model,
-            X[tr],
-            Y[tr],
-            X[te],
-            groups_train=grp[tr].to_numpy(),
-            seed=seed,
-            inner_folds=inner_folds,
-            selection=selection,
-            dft_train=None if dft is None else dft[tr],
-            g_test=g,
-        )
-        pred.insert(0, "model", model)
-        pred.insert(0, "section", sec)
-        pred.insert(0, "site", pred.index.astype(str))
-        return pred.reset_index(drop=True)
-
-    pairs = [(model, sec) for model in models for sec in sorted(grp.unique())]
+    kw = dict(seed=seed, inner_folds=inner_folds, selection=selection, g_test=g)
+    tasks = [(model, sec, X, Y, grp, dft, kw) for model in models for sec in sorted(grp.unique())]
     if int(workers) > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=int(workers)) as pool:
-            rows = list(pool.map(lambda ms: one(*ms), pairs))
+        rows = _in_processes(_held_out_predictions, tasks, int(workers))
     else:
-        rows = [one(*ms) for ms in pairs]
+        rows = [_held_out_predictions(t) for t in tasks]
     return pd.concat(rows, ignore_index=True)
+
+
+def _held_out_predictions(task) -> pd.DataFrame:
+    """One (model, section) pair of :func:`cross_validated_predictions`: the model fitted on every other section
+    predicts this one. ``task``: ``(model, section, X, Y, section labels, DFT targets or None, keyword
+    arguments of predict_parameters)``; module level, so that a process pool can run it."""
+    model, sec, X, Y, grp, dft, kw = task
+    te = (grp == sec).to_numpy()
+    tr = ~te
+    pred = predict_parameters(
+        model,
+        X[tr],
+        Y[tr],
+        X[te],
+        groups_train=grp[tr].to_numpy(),
+        dft_train=None if dft is None else dft[tr],
+        **kw,
+    )
+    pred.insert(0, "model", model)
+    pred.insert(0, "section", sec)
+    pred.insert(0, "site", pred.index.astype(str))
+    return pred.reset_index(drop=True)
+
+
+def _in_processes(fn, tasks: list, workers: int) -> list:
+    """``[fn(t) for t in tasks]`` in ``workers`` forked processes, in order, each with one BLAS thread (the
+    processes are the parallelism). Small chunks balance the load: a lasso fit costs 100 times an OLS one."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    chunk = max(1, len(tasks) // (8 * workers))
+    ctx = multiprocessing.get_context("fork")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_one_blas_thread) as pool:
+        return list(pool.map(fn, tasks, chunksize=chunk))
+
+
+def _one_blas_thread() -> None:
+    """Process-pool initializer: BLAS (and OpenMP) pools of one thread in this worker."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
 
 
 def _scores(pred: np.ndarray, ref: np.ndarray, ref_all: np.ndarray) -> dict:
