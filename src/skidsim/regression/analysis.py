@@ -125,7 +125,7 @@ def run_analysis(
     (:func:`rank_models`) and, for each of ``options.figure11_models`` (``"best"`` = the winner, or any model name
     such as ``"pca:study"``), the predicted parameters of the test sites, fitted on the training sites.
     ``g``/``measured_dft`` as in :func:`score_predictions`; the DFT speeds are ``options.prediction_speeds_kmh``.
-    ``selection``: ``"one_se"`` or ``"min"`` (:mod:`.paths`). ``workers``: threads of the cross-validation
+    ``selection``: ``"one_se"`` or ``"min"`` (:mod:`.paths`). ``workers``: processes of the cross-validation
     (:func:`cross_validated_predictions`; same numbers for any value). The intercept-only :data:`MEAN_MODEL` and
     the baseline :data:`BASELINE_MODEL` are always cross-validated (appended to the CV when ``options.models``
     lacks them): they are the references of the prediction-skill table (:func:`prediction_skill`, ``skill``).
