@@ -113,10 +113,13 @@ def _held_out_predictions(task) -> pd.DataFrame:
 
 def _in_processes(fn, tasks: list, workers: int) -> list:
     """``[fn(t) for t in tasks]`` in ``workers`` forked processes, in order, each with one BLAS thread (the
-    processes are the parallelism). Small chunks balance the load: a lasso fit costs 100 times an OLS one."""
+    processes are the parallelism); in this process where fork is not available. Small chunks balance the load (a
+    lasso path costs far more than an OLS fit)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
+    if "fork" not in multiprocessing.get_all_start_methods():  # Windows: the fits one after the other
+        return [fn(t) for t in tasks]
     chunk = max(1, len(tasks) // (8 * workers))
     ctx = multiprocessing.get_context("fork")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_one_blas_thread) as pool:
