@@ -545,3 +545,104 @@ def test_a_categorical_speed_rate_campaign_names_the_aggregate_not_section(seed)
     assert top.explains.startswith("section (") and top.p_value <= 0.05 and top.section_rest_p > 0.05
     sec = next(c for c in causes if c.section_id and c.level == "between-site" and c.kind == "x_speed")
     assert sec.significant and sec.label == ""
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# a between-site section effect that the measured curves do not show beyond the prediction model's terms
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _held_out_level(seed: int, in_measured: bool):
+    """One between-site level of 36 sites in 12 sections of 3 with a texture column `mpd` (section value plus site
+    scatter), measured curves (6 bins) linear in it plus noise, and a residual whose speed profiles hold a random
+    slope per section (a held-out-section error of the texture model); with ``in_measured`` the measured curves
+    hold the same section slopes (a section effect beyond the texture)."""
+    from skidsim.criticism.covariates import CandidateRoles, candidate_set
+    from skidsim.criticism.screening import LevelData, covariate_tests, lead_basis, level_context, section_rest_tests
+
+    rng = np.random.default_rng(seed)
+    sec = np.repeat(np.arange(12), 3)
+    mpd = np.exp(0.3 * rng.normal(size=12)[sec] + 0.1 * rng.normal(size=36))
+    sites = pd.DataFrame({"site": [f"s{i:02d}" for i in range(36)], "section": [f"S{g:02d}" for g in sec], "mpd": mpd})
+    bins = np.arange(20.0, 80.0, 10.0)
+    shape = (bins - bins.mean())[None, :] / 25
+    section_slope = 0.01 * rng.normal(size=12)[sec][:, None] * shape
+    M = 0.6 + 0.1 * np.log(mpd)[:, None] * (1 - bins / 100)[None, :] + 0.004 * rng.normal(size=(36, len(bins)))
+    R = 0.004 * rng.normal(size=(36, len(bins))) + section_slope
+    if in_measured:
+        M = M + section_slope
+    cands = candidate_set(sites, None, CandidateRoles(), 0.8)
+    data = LevelData("between-site", list(sites["site"]), bins, R)
+    data.measured = M
+    ctx = level_context(data, cands, 1999, np.random.default_rng(seed + 1))
+    tests = [t for t in covariate_tests(ctx, None) if t.kind == "x_speed"]
+    section_rest_tests(ctx, tests, F=lead_basis(data, cands.covariates, ("log(mpd)",)))
+    return {t.variable: t for t in tests}
+
+
+def test_section_identity_is_tested_on_the_measured_curves_beyond_the_prediction_terms():
+    """`section_rest_tests` with the prediction model's terms: section identity's `section_rest_p` is the p of a
+    section effect in the measured curves net of those terms (fitted over all sites). A section x speed effect of
+    the residual that the measured curves do not hold (the held-out-section error of the texture model) leaves it
+    at its level (p <= 0.05 in at most 3 of 20 seeds) while the residual test finds it (p <= 0.01 in every seed);
+    one the measured curves hold gives p <= 0.01 in every seed. Without the terms it is not computed."""
+    from skidsim.criticism.permutations import permutation_p
+
+    held_out = [_held_out_level(seed, False)["section"] for seed in range(20)]
+    assert all(permutation_p(t.T, t.Tp) <= 0.01 for t in held_out)
+    assert sum(t.section_rest_p <= 0.05 for t in held_out) <= 3
+    assert all(_held_out_level(seed, True)["section"].section_rest_p <= 0.01 for seed in range(20))
+    _, t = _section_level(0, "aggregate")
+    assert np.isnan(t["section"].section_rest_p)
+
+
+def test_a_section_effect_absent_from_the_measured_curves_beyond_the_prediction_terms_is_not_named():
+    """A significant between-site section effect with no explanation whose measured curves show no section effect
+    beyond the prediction model's terms (`section_rest_p` > fdr) is the texture model's held-out-section error:
+    not significant, labelled so, below every significant cause, and not named. With a section effect in the
+    measured curves (p <= fdr), or without that test (NaN), it is `section (unexplained)`; an explained section
+    effect keeps its explanation."""
+    from skidsim.criticism.causes import HELD_OUT_ERROR
+
+    sec = replace(_cause("section", 1.0, section_id=True, kind="x_speed"), section_rest_p=0.4)
+    weak = _cause("micro_Ssk", 0.1, sig=False, section_level=False, source="texture")
+    out = section_rule([sec, weak])
+    assert cr.named_cause(out) is None
+    s = next(c for c in out if c.variable == "section")
+    assert not s.significant and s.label == HELD_OUT_ERROR
+    site = _cause("station_ft", 0.0, section_level=False)
+    out = section_rule([sec, site, weak])
+    assert [c.variable for c in out] == ["station_ft", "section", "micro_Ssk"] and out[1].label == HELD_OUT_ERROR
+    for p in (0.01, float("nan")):
+        out = section_rule([replace(sec, section_rest_p=p)])
+        assert out[0].significant and out[0].label == SECTION_UNEXPLAINED
+    mix = _cause("mix", 0.8, kind="x_speed")
+    out = section_rule([mix, sec])
+    assert [c.variable for c in out] == ["mix", "section"] and out[1].significant and out[1].label == ""
+
+
+@pytest.fixture(scope="module")
+def spectral_design_0():
+    """The texture table of design 0 of the spectral generator (the design of rate seeds 0, 4, 8, 12 and 16)."""
+    import diagnosis_rate_campaigns as rc
+
+    return rc.generator_texture("spectral", 0)
+
+
+def test_a_spectral_null_campaign_does_not_name_the_held_out_error_of_the_texture_model(spectral_design_0):
+    """Rate campaign spectral / none / seed 8 (Rado's friction, which the prediction model cannot represent): the
+    between-site section x speed effect is significant (p_adjusted 0.025), explained by no column and by no
+    texture-model member, and was named `section (unexplained)`; the measured curves show no section x speed
+    effect beyond the prediction model's terms (section_rest_p 0.46): it is the texture model's error on
+    held-out sections (two low-MPD sections with opposite errors), not significant, and nothing is named."""
+    import diagnosis_rate_campaigns as rc
+
+    from skidsim.criticism.causes import HELD_OUT_ERROR
+
+    t, _ = rc.make_rate_campaign("spectral", "none", 8, texture=spectral_design_0)
+    causes = _rate_screen(t, 8)
+    sec = next(c for c in causes if c.section_id and c.level == "between-site" and c.kind == "x_speed")
+    assert sec.p_adjusted <= 0.05 and sec.section_rest_p > 0.05
+    assert not sec.significant and sec.label == HELD_OUT_ERROR
+    top = cr.named_cause(causes)
+    assert top is None or top.source == "texture_model", (top.variable, top.level, top.kind, top.label)

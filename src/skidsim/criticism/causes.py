@@ -15,6 +15,8 @@ from .options import DiagnosisOptions
 SECTION_SHARE_MIN = 0.5
 #: The label of section identity when it is significant and nothing explains most of it.
 SECTION_UNEXPLAINED = "section (unexplained)"
+#: Label of a between-site section effect that the measured curves do not show beyond the prediction model's terms.
+HELD_OUT_ERROR = "the texture model's error on held-out sections"
 #: Sources of the texture explanations of a section effect (texture parameters, the texture-model candidate).
 TEXTURE_SOURCES = ("texture", "texture_model")
 
@@ -47,11 +49,13 @@ class Cause:
     ``1 - SS_sec(residual net of the candidate) / SS_sec(residual)``
     (:func:`skidsim.criticism.texture_candidate.section_share`; NaN where not computed); ``section_share_main``:
     the same for the site means (between sites); ``section_id``: the candidate is section identity; ``label``:
-    what the report names (``section (unexplained)``, or the texture model in words; empty: the variable);
-    ``section_rest_p``: for a section-level column, the permutation p of the section effect left beyond it
-    (:func:`skidsim.criticism.screening.section_rest_tests`; NaN elsewhere); ``explains``: the section effect
-    (``section (<level>, <kind>)``) a section-level column is named for by rule 3b of :func:`section_rule`, which
-    makes it significant although its own p_adjusted is above fdr (empty otherwise).
+    what the report names (``section (unexplained)``, ``HELD_OUT_ERROR``, or the texture model in words; empty:
+    the variable);
+    ``section_rest_p``: for a section-level column, the permutation p of the section effect left beyond it; for
+    section identity between sites, the p of a section effect in the measured curves beyond the prediction
+    model's terms (:func:`skidsim.criticism.screening.section_rest_tests`; NaN elsewhere); ``explains``: the
+    section effect (``section (<level>, <kind>)``) a section-level column is named for by rule 3b of
+    :func:`section_rule`, which makes it significant although its own p_adjusted is above fdr (empty otherwise).
     """
 
     variable: str
@@ -305,7 +309,7 @@ def _texture_above_unexplained(causes: list[Cause], used: set) -> None:
             _move(causes, max(expl, key=lambda c: c.section_share), _pos(causes, S))
 
 
-def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> list[Cause]:
+def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr: float | None = None) -> list[Cause]:
     """The naming rule of a section effect (docs/model-criticism.md, section 2, "Naming a section effect").
 
     For every significant section identity S (level L, kind K):
@@ -325,12 +329,18 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
       column that carries S and leaves nothing beyond it is significant by then and counts as such a column);
     * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
       ``section (unexplained)``; it then ranks below a texture explanation of another section effect of its level
-      (:func:`_texture_above_unexplained`).
+      (:func:`_texture_above_unexplained`);
+    * (rule 6) unless the measured curves show no section effect beyond the prediction model's terms
+      (``S.section_rest_p > fdr``; None: the default of :class:`~skidsim.criticism.options.DiagnosisOptions`): S is
+      then the texture model's error on held-out sections (a section whose texture the other sections do not
+      span keeps an error that clusters by section), labelled ``HELD_OUT_ERROR``, not significant, and it goes
+      right below every significant cause.
 
     Then a texture-model candidate that explains no significant section effect goes below every other significant
     cause (it is evidence about the texture model, not the first explanation of a site-level residual)."""
+    fdr = DiagnosisOptions().fdr if fdr is None else fdr
     causes = list(causes)
-    used = set()
+    used, held_out = set(), []
     for S0 in [c for c in causes if c.section_id and c.significant]:
         S, L, K = S0, S0.level, S0.kind
         weak = [
@@ -352,7 +362,14 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN) -> l
             _move(causes, best, _pos(causes, S))
         k = _pos(causes, S)
         if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
-            causes[k] = replace(S, label=SECTION_UNEXPLAINED)
+            if np.isfinite(S.section_rest_p) and S.section_rest_p > fdr:
+                causes[k] = replace(S, label=HELD_OUT_ERROR, significant=False)
+                held_out.append(causes[k])
+            else:
+                causes[k] = replace(S, label=SECTION_UNEXPLAINED)
+    for S in held_out:  # no longer significant: right below every significant cause
+        causes.pop(_pos(causes, S))
+        causes.insert(max((i for i, c in enumerate(causes) if c.significant), default=-1) + 1, S)
     _texture_above_unexplained(causes, used)
     tm = [c for c in causes if c.significant and c.source == "texture_model" and id(c) not in used]
     others = [c for c in causes if c.significant and c.source != "texture_model"]
@@ -426,7 +443,7 @@ def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr
     causes = section_explanations(causes, fdr)
     causes = sorted(causes, key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
     causes = order_by_refinement(causes, cov)
-    causes = section_rule(causes)
+    causes = section_rule(causes, fdr=fdr)
     _mpd_above_its_clusters(causes, mpd_col)
     _shape_below_its_covariate(causes)
     return causes

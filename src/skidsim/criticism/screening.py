@@ -366,32 +366,62 @@ def section_shares(ctx: LevelContext, tests: list[CandidateTest]) -> None:
             t.section_share_main = section_share(Q, ctx.Ys["main"], ctx.sec)
 
 
-def section_rest_tests(ctx: LevelContext, tests: list[CandidateTest], chunk: int = 512) -> None:
+def rest_residuals(ctx: LevelContext, F: np.ndarray | None) -> dict | None:
+    """Between sites, the residual section identity is tested on beyond the prediction model's terms
+    (:func:`section_rest_tests`): per kind (``main``, ``x_speed``, as in ``ctx.Ys``) the measured curves net of
+    ``F``, the prediction model's terms ``[1, lead columns]`` (:func:`lead_basis`), fitted over all the sites.
+    The between-site residual is the held-out-section error of the texture model: a section whose texture the
+    other sections do not span (high leverage) keeps an error that clusters by section whether or not anything
+    beyond the texture acts on it (spectral campaigns: two low-MPD sections whose held-out errors have opposite
+    signs); the measured curves net of the same terms fitted over all sites do not hold that error. None within
+    sites, without the measured matrix or without ``F``."""
+    M = ctx.data.measured
+    if ctx.data.level != "between-site" or M is None or F is None:
+        return None
+    m = M.mean(axis=1)
+    DM = M - m[:, None]
+    Ycv = {"main": (m - m.mean())[:, None], "x_speed": DM - DM.mean(axis=0)}
+    return {kind: residualise(Ycv[kind], F) for kind in ctx.Ys}
+
+
+def section_rest_tests(
+    ctx: LevelContext, tests: list[CandidateTest], chunk: int = 512, F: np.ndarray | None = None
+) -> None:
     """For every section-level column (not section identity; residual test) of one level: is a section effect left
     beyond the column? The statistic is the between-section sum of squares of the tested residual net of the
     column's basis, ``SS_sec((I - Q Q') Y)``, the part of section identity's statistic the column does not carry;
     its p-value (``section_rest_p``) is Freedman & Lane (1983): the reduced model's residuals ``(I - Q Q') Y``
     permuted over the sites by section identity's own free site permutations (no new draws; the null is no
     section effect beyond the column, under which the sites are exchangeable apart from the column's groups).
-    Used by the naming rule of a section effect (:func:`skidsim.criticism.causes.section_rule`, rule 3b). In
-    place."""
+    Used by the naming rule of a section effect (:func:`skidsim.criticism.causes.section_rule`, rule 3b). Between
+    sites with the prediction model's terms ``F`` (:func:`lead_basis`) and the measured curves, section identity is
+    tested too: its ``section_rest_p`` is the p of a section effect in the measured curves net of ``F``
+    (:func:`rest_residuals`; the reduced model ``F``, the same free site permutations), which rule 6 of the naming
+    rule reads (a between-site section effect that the measured curves do not show beyond the prediction model's
+    terms is the texture model's held-out-section error). In place."""
     secs, inv = np.unique(ctx.sec, return_inverse=True)
     G = np.zeros((ctx.n, len(secs)))
     G[np.arange(ctx.n), inv] = 1.0
     G /= np.sqrt(G.sum(axis=0))
     P = ctx.perm_site.shape[0]
+    rest = rest_residuals(ctx, F)
+    if rest is not None:
+        Fq = np.linalg.qr(F)[0]
     for t in tests:
         Q = ctx.bases.get(t.variable)
+        is_id = ctx.is_section_id.get(t.variable, False)
         if (
             Q is None
             or Q.shape[1] == 0
             or not ctx.section_level.get(t.variable, False)
-            or ctx.is_section_id.get(t.variable, False)
+            or (is_id and rest is None)
             or t.texture_pcs >= 0
             or t.kind not in ctx.Ys
         ):
             continue
         Y = ctx.Ys[t.kind]
+        if is_id:  # the reduced model F (rest[kind] is orthogonal to F already)
+            Y, Q = rest[t.kind], Fq
         R = Y - Q @ (Q.T @ Y)
         A = G.T @ R
         T = float((A * A).sum())
@@ -584,7 +614,7 @@ def screen_candidates(
         texture_beyond_lead(ctx, cands, texture_lead)
         cov_tests = covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
         section_shares(ctx, cov_tests)
-        section_rest_tests(ctx, cov_tests)
+        section_rest_tests(ctx, cov_tests, F=lead_basis(ctx.data, cands.covariates, texture_lead))
         tests += cov_tests
         members = _members(ctx, cands, texture_pc_scores, texture_lead)
         tests += texture_model_tests(ctx, members)
