@@ -29,6 +29,7 @@ import pandas as pd
 
 from .adjustment import added_variable, texture_model_scores
 from .causes import (
+    HELD_OUT_ERROR,
     SECTION_SHARE_MIN,
     SECTION_UNEXPLAINED,
     Cause,
@@ -84,6 +85,7 @@ __all__ = [
     "section_rule",
     "SECTION_SHARE_MIN",
     "SECTION_UNEXPLAINED",
+    "HELD_OUT_ERROR",
     "LEVELS",
     "DEFAULT_EXCLUDE",
 ]
