@@ -29,9 +29,9 @@ import pandas as pd
 
 from .adjustment import added_variable, texture_model_scores
 from .causes import (
-    HELD_OUT_ERROR,
     SECTION_SHARE_MIN,
     SECTION_UNEXPLAINED,
+    TEXTURE_MISFIT,
     Cause,
     named_cause,
     order_by_refinement,
@@ -85,7 +85,7 @@ __all__ = [
     "section_rule",
     "SECTION_SHARE_MIN",
     "SECTION_UNEXPLAINED",
-    "HELD_OUT_ERROR",
+    "TEXTURE_MISFIT",
     "LEVELS",
     "DEFAULT_EXCLUDE",
 ]

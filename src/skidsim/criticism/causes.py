@@ -15,8 +15,9 @@ from .options import DiagnosisOptions
 SECTION_SHARE_MIN = 0.5
 #: The label of section identity when it is significant and nothing explains most of it.
 SECTION_UNEXPLAINED = "section (unexplained)"
-#: Label of a between-site section effect that the measured curves do not show beyond the prediction model's terms.
-HELD_OUT_ERROR = "the texture model's error on held-out sections"
+#: Label of a between-site section effect that the measured curves do not show beyond a quadratic texture model in
+#: the prediction model's terms (rule 6 of :func:`section_rule`).
+TEXTURE_MISFIT = "the texture model's misfit (no section effect in the measured curves beyond its quadratic form)"
 #: Sources of the texture explanations of a section effect (texture parameters, the texture-model candidate).
 TEXTURE_SOURCES = ("texture", "texture_model")
 
@@ -49,13 +50,14 @@ class Cause:
     ``1 - SS_sec(residual net of the candidate) / SS_sec(residual)``
     (:func:`skidsim.criticism.texture_candidate.section_share`; NaN where not computed); ``section_share_main``:
     the same for the site means (between sites); ``section_id``: the candidate is section identity; ``label``:
-    what the report names (``section (unexplained)``, ``HELD_OUT_ERROR``, or the texture model in words; empty:
+    what the report names (``section (unexplained)``, ``TEXTURE_MISFIT``, or the texture model in words; empty:
     the variable);
     ``section_rest_p``: for a section-level column, the permutation p of the section effect left beyond it; for
-    section identity between sites, the p of a section effect in the measured curves beyond the prediction
-    model's terms (:func:`skidsim.criticism.screening.section_rest_tests`; NaN elsewhere); ``explains``: the
-    section effect (``section (<level>, <kind>)``) a section-level column is named for by rule 3b of
-    :func:`section_rule`, which makes it significant although its own p_adjusted is above fdr (empty otherwise).
+    section identity between sites, the p of a section effect in the measured curves beyond a quadratic texture
+    model in the prediction model's terms (:func:`skidsim.criticism.screening.section_rest_tests`; NaN
+    elsewhere); ``explains``: the section effect (``section (<level>, <kind>)``) a section-level column is named
+    for by rule 3b of :func:`section_rule`, which makes it significant although its own p_adjusted is above fdr
+    (empty otherwise).
     """
 
     variable: str
@@ -330,11 +332,12 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
     * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
       ``section (unexplained)``; it then ranks below a texture explanation of another section effect of its level
       (:func:`_texture_above_unexplained`);
-    * (rule 6) unless the measured curves show no section effect beyond the prediction model's terms
-      (``S.section_rest_p > fdr``; None: the default of :class:`~skidsim.criticism.options.DiagnosisOptions`): S is
-      then the texture model's error on held-out sections (a section whose texture the other sections do not
-      span keeps an error that clusters by section), labelled ``HELD_OUT_ERROR``, not significant, and it goes
-      right below every significant cause.
+    * (rule 6) unless the measured curves show no section effect beyond a quadratic texture model in the
+      prediction model's terms (``S.section_rest_p > fdr``, :func:`skidsim.criticism.screening.section_rest_tests`;
+      None: the default of :class:`~skidsim.criticism.options.DiagnosisOptions`): S is then the texture model's
+      misfit (its error on held-out sections, or a curvature of friction in its terms that clusters by section
+      through the per-section textures), labelled ``TEXTURE_MISFIT``, not significant, and it goes right below
+      every significant cause.
 
     Then a texture-model candidate that explains no significant section effect goes below every other significant
     cause (it is evidence about the texture model, not the first explanation of a site-level residual)."""
@@ -363,7 +366,7 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
         k = _pos(causes, S)
         if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
             if np.isfinite(S.section_rest_p) and S.section_rest_p > fdr:
-                causes[k] = replace(S, label=HELD_OUT_ERROR, significant=False)
+                causes[k] = replace(S, label=TEXTURE_MISFIT, significant=False)
                 held_out.append(causes[k])
             else:
                 causes[k] = replace(S, label=SECTION_UNEXPLAINED)

@@ -367,14 +367,14 @@ def section_shares(ctx: LevelContext, tests: list[CandidateTest]) -> None:
 
 
 def rest_residuals(ctx: LevelContext, F: np.ndarray | None) -> dict | None:
-    """Between sites, the residual section identity is tested on beyond the prediction model's terms
+    """Between sites, the residual section identity is tested on beyond the texture model
     (:func:`section_rest_tests`): per kind (``main``, ``x_speed``, as in ``ctx.Ys``) the measured curves net of
-    ``F``, the prediction model's terms ``[1, lead columns]`` (:func:`lead_basis`), fitted over all the sites.
-    The between-site residual is the held-out-section error of the texture model: a section whose texture the
-    other sections do not span (high leverage) keeps an error that clusters by section whether or not anything
-    beyond the texture acts on it (spectral campaigns: two low-MPD sections whose held-out errors have opposite
-    signs); the measured curves net of the same terms fitted over all sites do not hold that error. None within
-    sites, without the measured matrix or without ``F``."""
+    ``F`` (:func:`texture_model_basis`: the prediction model's terms and their second-order terms), fitted over all
+    the sites. The between-site residual is the held-out-section error of the texture model: a section whose
+    texture the other sections do not span (high leverage) keeps an error that clusters by section whether or not
+    anything beyond the texture acts on it (spectral campaigns: two low-MPD sections whose held-out errors have
+    opposite signs); the measured curves net of a texture model fitted over all sites do not hold that error.
+    None within sites, without the measured matrix or without ``F``."""
     M = ctx.data.measured
     if ctx.data.level != "between-site" or M is None or F is None:
         return None
@@ -382,6 +382,18 @@ def rest_residuals(ctx: LevelContext, F: np.ndarray | None) -> dict | None:
     DM = M - m[:, None]
     Ycv = {"main": (m - m.mean())[:, None], "x_speed": DM - DM.mean(axis=0)}
     return {kind: residualise(Ycv[kind], F) for kind in ctx.Ys}
+
+
+def texture_model_basis(ctx: LevelContext, cands: CandidateSet, lead, members: list[TextureMember]):
+    """``[1, lead columns, the curved-in member's design]`` (:func:`lead_basis`; the member
+    ``curved in <a> and <b>`` of :func:`~skidsim.criticism.texture_candidate.texture_members`: the products and
+    squares of the prediction model's two texture terms) over the between-site sites: a quadratic texture model
+    in the prediction model's terms, which spans a level set by one term times a speed dependence set by the
+    other (the IFI and Rado forms) to second order. :func:`lead_basis` alone where that member is missing; None
+    without lead terms."""
+    F = lead_basis(ctx.data, cands.covariates, lead)
+    curved = next((m for m in members if m.name.startswith("curved in ")), None)
+    return F if F is None or curved is None else np.c_[F, curved.design]
 
 
 def section_rest_tests(
@@ -394,11 +406,11 @@ def section_rest_tests(
     permuted over the sites by section identity's own free site permutations (no new draws; the null is no
     section effect beyond the column, under which the sites are exchangeable apart from the column's groups).
     Used by the naming rule of a section effect (:func:`skidsim.criticism.causes.section_rule`, rule 3b). Between
-    sites with the prediction model's terms ``F`` (:func:`lead_basis`) and the measured curves, section identity is
-    tested too: its ``section_rest_p`` is the p of a section effect in the measured curves net of ``F``
-    (:func:`rest_residuals`; the reduced model ``F``, the same free site permutations), which rule 6 of the naming
-    rule reads (a between-site section effect that the measured curves do not show beyond the prediction model's
-    terms is the texture model's held-out-section error). In place."""
+    sites with a texture model ``F`` (:func:`texture_model_basis`, ``[1, ...]``) and the measured curves, section
+    identity is tested too: its ``section_rest_p`` is the p of a section effect in the measured curves net of
+    ``F`` (:func:`rest_residuals`; the reduced model ``F``, the same free site permutations), which rule 6 of the
+    naming rule reads (a between-site section effect that the measured curves do not show beyond the texture
+    model is the texture model's misfit). In place."""
     secs, inv = np.unique(ctx.sec, return_inverse=True)
     G = np.zeros((ctx.n, len(secs)))
     G[np.arange(ctx.n), inv] = 1.0
@@ -406,7 +418,8 @@ def section_rest_tests(
     P = ctx.perm_site.shape[0]
     rest = rest_residuals(ctx, F)
     if rest is not None:
-        Fq = np.linalg.qr(F)[0]
+        Fq = member_basis(TextureMember("F", "", F[:, 1:]))
+        Fq = np.c_[np.full(ctx.n, 1.0 / np.sqrt(ctx.n)), Fq]  # [1, F beyond its intercept], orthonormal
     for t in tests:
         Q = ctx.bases.get(t.variable)
         is_id = ctx.is_section_id.get(t.variable, False)
@@ -614,9 +627,9 @@ def screen_candidates(
         texture_beyond_lead(ctx, cands, texture_lead)
         cov_tests = covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
         section_shares(ctx, cov_tests)
-        section_rest_tests(ctx, cov_tests, F=lead_basis(ctx.data, cands.covariates, texture_lead))
-        tests += cov_tests
         members = _members(ctx, cands, texture_pc_scores, texture_lead)
+        section_rest_tests(ctx, cov_tests, F=texture_model_basis(ctx, cands, texture_lead, members))
+        tests += cov_tests
         tests += texture_model_tests(ctx, members)
         if ctx.data.level == "between-site":
             between = (ctx, members)
