@@ -35,7 +35,7 @@ from .fdr import adjust, family_sizes, permutation_count
 from .options import DiagnosisOptions
 from .permutations import nested_permutations, perm_stats, permutation_p, site_permutations
 from .residuals import LEVELS, level_matrix, require_columns, texture_model_shape
-from .texture_candidate import TextureMember, member_basis, section_share, texture_members
+from .texture_candidate import TextureMember, centred_basis, member_basis, section_share, texture_members
 
 
 @dataclass
@@ -125,6 +125,15 @@ class LevelContext:
         return self.data.bins - self.data.bins.mean()
 
 
+def curve_responses(M: np.ndarray) -> tuple[np.ndarray, dict]:
+    """The responses of a site x speed matrix ``M`` (n_sites, S; residuals or measured mu): ``D``, each site's curve
+    minus its mean, and per kind ``x_speed``, ``D`` column-centred (the speed shapes), and ``main``, the centred
+    site means (n_sites, 1)."""
+    m = M.mean(axis=1)
+    D = M - m[:, None]
+    return D, {"x_speed": D - D.mean(axis=0), "main": (m - m.mean())[:, None]}
+
+
 def level_context(data: LevelData, cands: CandidateSet, P: int, rng) -> LevelContext:
     """The shared data of one level; draws its two permutation sets from ``rng`` (sites, then nested)."""
     missing = [s for s in data.site_ids if s not in cands.covariates.index]
@@ -138,11 +147,9 @@ def level_context(data: LevelData, cands: CandidateSet, P: int, rng) -> LevelCon
         if (data.level == "within-site" and mpd is not None and mpd in C.columns and info[mpd][1] == "numeric")
         else None
     )
-    m = data.R.mean(axis=1)
-    D = data.R - m[:, None]
-    Ys = {"x_speed": D - D.mean(axis=0)}
-    if data.level == "between-site":
-        Ys["main"] = (m - m.mean())[:, None]
+    D, Ys = curve_responses(data.R)
+    if data.level != "between-site":
+        del Ys["main"]
     perm_site = site_permutations(len(sec), P, rng)
     perm_nested = nested_permutations(sec, P, rng)
     n_sec = len(np.unique(sec))
@@ -378,9 +385,7 @@ def rest_residuals(ctx: LevelContext, F: np.ndarray | None) -> dict | None:
     M = ctx.data.measured
     if ctx.data.level != "between-site" or M is None or F is None:
         return None
-    m = M.mean(axis=1)
-    DM = M - m[:, None]
-    Ycv = {"main": (m - m.mean())[:, None], "x_speed": DM - DM.mean(axis=0)}
+    Ycv = curve_responses(M)[1]
     return {kind: residualise(Ycv[kind], F) for kind in ctx.Ys}
 
 
@@ -418,7 +423,7 @@ def section_rest_tests(
     P = ctx.perm_site.shape[0]
     rest = rest_residuals(ctx, F)
     if rest is not None:
-        Fq = member_basis(TextureMember("F", "", F[:, 1:]))
+        Fq = centred_basis(F[:, 1:])
         Fq = np.c_[np.full(ctx.n, 1.0 / np.sqrt(ctx.n)), Fq]  # [1, F beyond its intercept], orthonormal
     for t in tests:
         Q = ctx.bases.get(t.variable)

@@ -177,7 +177,12 @@ def texture_members(
 
 def member_basis(member: TextureMember) -> np.ndarray:
     """Orthonormal basis of the centred design of a member (rank-deficient columns dropped)."""
-    Z = member.design - member.design.mean(axis=0)
+    return centred_basis(member.design)
+
+
+def centred_basis(X: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the column-centred ``X`` (n, k): QR, rank-deficient columns dropped."""
+    Z = X - X.mean(axis=0)
     q, r = np.linalg.qr(Z)
     keep = np.abs(np.diag(r)) > 1e-9 * max(1.0, np.abs(r).max())
     return q[:, keep]
