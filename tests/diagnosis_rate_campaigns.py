@@ -98,6 +98,12 @@ N_SECTIONS, SITES_PER_SECTION = 12, 3
 #: small clean scans per generator (rows, cols) at the generator's own spacing
 SCAN = {"chips": (640, 640), "spectral": (300, 300)}
 N_DESIGNS = 4
+#: The measured columns of a generator's texture table (:func:`texture_table_of_surface`).
+TABLE_COLUMNS = (
+    ["profile_MPD"]
+    + [f"{b}_{k}" for b in ("raw", "macro", "micro") for k in ("Sq", "Sa", "Sp", "Sv", "Ssk", "Sku", "Sdq", "Sdr")]
+    + ["micro_Sq_top", "micro_Sdq_top"]
+)
 #: effect constants (size 1)
 POLISH_PER_MSA = 0.015
 STATION_PER_FT = 0.0003
@@ -131,10 +137,13 @@ def wlf_log10_shift(t_c, t_ref_c=WLF["t_ref_c"], c1=WLF["c1"], c2_k=WLF["c2_k"])
 def texture_table_of_surface(clean: np.ndarray, dx_mm: float, micro_cut_mm: float = 0.5) -> tuple[dict, dict]:
     """(table row, hidden measures) of one clean height map (mm): profile_MPD (mm; the generator's
     :func:`~skidsim.generators.campaign.texture_measures`), and per band raw / macro / micro (form removed,
-    Butterworth bands at ``max(micro_cut_mm, 5 dx)`` and 50 mm) Sq, Sa, Sp, Sv (mm), Ssk, Sku, Sdq, Sdr (%).
+    Butterworth bands at ``max(micro_cut_mm, 5 dx)`` and 50 mm) Sq, Sa, Sp, Sv (mm), Ssk, Sku, Sdq, Sdr (%), and
+    the micro band's contact-zone micro_Sq_top (mm) and micro_Sdq_top (:mod:`skidsim.texture.contact`).
     Hidden: the generator's micro_sq_mm (what its friction law reads) and micro_contact (mm, module docstring)."""
     from skidsim.generators.campaign import texture_measures
     from skidsim.surface import Surface
+    from skidsim.texture import TextureOptions
+    from skidsim.texture.contact import contact_parameters
     from skidsim.texture.filters import separate_bands
     from skidsim.texture.height import height_parameters
     from skidsim.texture.hybrid import sdq, sdr
@@ -151,6 +160,8 @@ def texture_table_of_surface(clean: np.ndarray, dx_mm: float, micro_cut_mm: floa
         row[f"{band}_Sdq"] = sdq(z, dx_mm, dx_mm)
         row[f"{band}_Sdr"] = sdr(z, dx_mm, dx_mm)
     raw, micro = bands["raw"].heights, bands["micro"].heights
+    for k, v in contact_parameters(raw, micro, dx_mm, dx_mm, TextureOptions().contact_top_pct).items():
+        row[f"micro_{k}"] = v
     top = raw >= np.quantile(raw, 0.995) - CONTACT_DEPTH_MM
     hidden = {
         "micro_sq_mm": meas["micro_sq_mm"],
@@ -173,7 +184,9 @@ def generator_texture(generator: str, design: int, cache_dir=None, shape=None) -
     if cache_dir is not None:
         path = Path(cache_dir) / f"{generator}_{design}_{shape[0]}x{shape[1]}.csv"
         if path.exists():
-            return pd.read_csv(path)
+            cached = pd.read_csv(path)
+            if set(TABLE_COLUMNS) <= set(cached.columns):  # a cache of an older table is computed again
+                return cached
     cfg = gc.generator_config(
         generator,
         {"seed": 20261125 + int(design), "n_sites": 36, "n_sections": N_SECTIONS, "shape": list(shape)},

@@ -234,6 +234,21 @@ def test_a_site_level_column_that_carries_the_section_effect_is_named_above_sect
     assert [c.variable for c in out] == ["section", "temperature_c"] and out[0].label == SECTION_UNEXPLAINED
 
 
+def test_a_column_that_explains_the_section_effect_and_predicts_better_than_the_texture_model_is_named():
+    """Both a texture-model member and a site-level column (a section-clustered test temperature) explain more
+    than half of the between-site section effect: the one that predicts held-out sites better (larger cv_msr)
+    goes above section identity; with equal predictive evidence the texture explanation keeps precedence."""
+    sec = replace(_cause("section", 1.0, section_id=True), cv_msr=0.0039)
+    temp = replace(_cause("temperature_c", 0.55, section_level=False), cv_msr=0.0037)
+    tm = _cause("texture_model[nonlinear in log(profile_MPD)]", 0.7, section_level=False, source="texture_model")
+    out = section_rule([sec, temp, replace(tm, cv_msr=0.0020)])
+    assert [c.variable for c in out][:2] == ["temperature_c", "section"] and out[1].label == ""
+    out = section_rule([sec, temp, replace(tm, cv_msr=0.0045)])
+    assert [c.variable for c in out][:2] == [tm.variable, "section"]
+    out = section_rule([sec, replace(temp, cv_msr=0.0020), replace(tm, cv_msr=0.0020)])
+    assert [c.variable for c in out][:2] == [tm.variable, "section"]
+
+
 @pytest.fixture(scope="module")
 def spectral_design_1():
     """The texture table of design 1 of the spectral generator (the design of rate seeds 1, 9 and 13)."""

@@ -144,7 +144,11 @@ def test_workflow_names_hidden_texture_x_speed(tmp_path):
     "461cc35): the regression chose ols2@dft on macro_Spk and micro_Ssk, which carry R^2 0.906 of the log contact "
     "microtexture over the 36 sites, so the held-out predictions already follow the hidden measure; what is left "
     "correlates 0.23 with it (even the true measure would not be significant), while the generator's random section "
-    "factors (sd 0.056 in log level) are a real section effect that nothing carries. Remove the mark when it passes.",
+    "factors (sd 0.056 in log level) are a real section effect that nothing carries. With the contact-zone "
+    "microtexture in the texture table (micro_Sq_top, micro_Sdq_top; 2026-11-30, working tree on top of a575612) the "
+    "same name: micro_Sq_top correlates 0.83 with the log contact microtexture over the 36 sites, micro_Ssk -0.84, and "
+    "ols2@dft again chose micro_Ssk with a macro column; micro_Sq_top between sites p 0.93 (main) and 0.23 (x speed). "
+    "Remove the mark when it passes.",
 )
 def test_workflow_names_the_texture_model_for_an_unheld_texture_measure(tmp_path):
     out = run_texture_campaign(tmp_path, "chips", "contact_micro", 2.0)

@@ -322,7 +322,9 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
     * a significant texture explanation at L (a texture cluster, MPD, or the texture model; of kind K, or of any
       kind when K is ``main`` and it explains that share of the site means' section effect) that explains at least
       ``share_min`` of it moves right above S (the one with the largest share): the texture model, or the texture
-      measure, is the cause;
+      measure, is the cause; unless a sites.csv column of the next rule also explains that share and predicts
+      held-out sites better (a larger ``cv_msr``), which then moves right above S instead (a section-clustered
+      test temperature that a 3-column texture member also fits over 12 sections);
     * else a significant sites.csv column (section-level, or varying within sections) that explains at least
       ``share_min`` of S through its test at L (:func:`_column_explains`: of kind K, or of any kind when K is
       ``main``; the column itself may be significant at another level or kind) moves right above S (the one with
@@ -357,10 +359,10 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
         expl = [c for c in causes if _explanation(c, S, True, share_min)]
         cols = {id(c): v for c in causes if np.isfinite(v := _column_explains(c, S, causes, share_min))}
         used.update(id(c) for c in expl)
-        if expl:
-            best = max(expl, key=lambda c: _share_of(c, K))
-        else:
-            best = max((c for c in causes if id(c) in cols), key=lambda c: cols[id(c)], default=None)
+        col_best = max((c for c in causes if id(c) in cols), key=lambda c: cols[id(c)], default=None)
+        best = max(expl, key=lambda c: _share_of(c, K)) if expl else col_best
+        if expl and col_best is not None and col_best.cv_msr > best.cv_msr:
+            best = col_best  # the column predicts held-out sites better: it is the better explanation
         if best is not None and _pos(causes, best) > _pos(causes, S):
             _move(causes, best, _pos(causes, S))
         k = _pos(causes, S)

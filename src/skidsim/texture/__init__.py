@@ -8,6 +8,7 @@ Public API (stable names the workflow calls)::
     separate_bands(surface, macro=(0.5, 50.0), order=2, form="plane", fill="linear", workers=1)
         -> {"raw", "macro", "micro"} Surfaces
     areal_parameters(surface, band, options) -> {name: (value, unit)}
+    cross_band_parameters(bands, options) -> {band: {name: (value, unit)}}  (contact zone: micro on the tops)
     mean_profile_depth(surface, ...) -> MPDResult
     texture_table / campaign_table / table4_statistics / characterise
 
@@ -17,7 +18,7 @@ Every convention that changes a number is documented in ``docs/texture.md`` and 
 from .despeckle import despeckle, despeckle_detail
 from .filters import fill_invalid, remove_form, separate_bands
 from .mpd import MPDResult, mean_profile_depth
-from .parameters import GROUPS, UNITS, TextureOptions, areal_parameters
+from .parameters import GROUPS, UNITS, TextureOptions, areal_parameters, cross_band_parameters
 
 mpd = mean_profile_depth
 
@@ -32,6 +33,7 @@ __all__ = [
     "mpd",
     "GROUPS",
     "UNITS",
+    "cross_band_parameters",
     "TextureOptions",
     "areal_parameters",
     "campaign_table",

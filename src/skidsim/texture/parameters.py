@@ -60,6 +60,8 @@ UNITS: dict[str, str] = {
     "motif_mean_volume": "mm^3",
     "motif_mean_height_surface_ratio": "mm/mm^2",
     "motif_mean_area": "mm^2",
+    "Sq_top": "mm",
+    "Sdq_top": "1",
 }
 
 GROUPS = {
@@ -76,7 +78,11 @@ GROUPS = {
         "motif_mean_height_surface_ratio",
         "motif_mean_area",
     ),
+    "contact": ("Sq_top", "Sdq_top"),
 }
+
+#: Groups computed from two bands together, reported with one band (:func:`band_set_parameters`).
+CROSS_BAND_GROUPS = {"contact": "micro"}
 
 
 @dataclass(frozen=True)
@@ -90,9 +96,11 @@ class TextureOptions:
     spc_half_window (points); motif_pruning_pct; furrow_window_mm; furrow_min_depth_pct; groups: the
     parameter groups to compute; mpd_axis, mpd_segment_mm, mpd_spike_alpha, mpd_detect_plates,
     mpd_plate_threshold_mm, mpd_max_dropout_pct: the MPD procedure (:class:`skidsim.texture.mpd.MPDOptions`,
-    checked there; :meth:`mpd_kwargs`); workers (scipy.fft threads); crop_y_mm (mm or None): work on the
-    centred band of this many mm of each scan's rows (y) from the despeckle step on, so every texture
-    parameter, the MPD and the FE pavement come from that band (the quick configuration: about half the area;
+    checked there; :meth:`mpd_kwargs`); contact_top_pct (%): the areal material ratio that bounds the top zone of
+    the contact-zone parameters (group ``contact``: micro Sq_top, Sdq_top; :mod:`skidsim.texture.contact`);
+    workers (scipy.fft threads); crop_y_mm (mm or None): work on the centred band of this many mm of each scan's
+    rows (y) from the despeckle step on, so every texture parameter, the MPD and the FE pavement come from that
+    band (the quick configuration: about half the area;
     None: the whole scan).
     """
 
@@ -122,6 +130,7 @@ class TextureOptions:
     mpd_detect_plates: bool = False
     mpd_plate_threshold_mm: float = 30.0
     mpd_max_dropout_pct: float = 10.0
+    contact_top_pct: float = 10.0
     workers: int = 1
     crop_y_mm: float | None = None
 
@@ -147,6 +156,8 @@ class TextureOptions:
             bad("acf_on_border", "'nan' or 'bound'")
         if not 0 < self.acf_threshold < 1:
             bad("acf_threshold", "a number in (0, 1)")
+        if not 0 < self.contact_top_pct <= 100:
+            bad("contact_top_pct", "a material ratio in (0, 100] %")
         unknown_groups = sorted(set(self.groups) - set(GROUPS))
         if unknown_groups:
             raise ConfigError(f"texture.groups: unknown group(s) {unknown_groups}; expected among {list(GROUPS)}")
@@ -254,3 +265,18 @@ def areal_parameters(
             )
         )
     return {k: (float(out[k]), UNITS[k]) for k in UNITS if k in out}
+
+
+def cross_band_parameters(bands, options: TextureOptions | dict | None = None) -> dict[str, dict[str, tuple]]:
+    """The parameters of :data:`CROSS_BAND_GROUPS` in ``options.groups`` from the complete band surfaces
+    ``bands`` (``{"raw", "macro", "micro"}`` -> Surface): ``{band: {name: (value, unit)}}``, the band they are
+    reported with. Group ``contact``: the micro band on the raw surface's top zone
+    (:func:`skidsim.texture.contact.contact_parameters`, ``options.contact_top_pct``)."""
+    from .contact import contact_parameters
+
+    opt = options if isinstance(options, TextureOptions) else TextureOptions.from_dict(options)
+    if "contact" not in opt.groups:
+        return {}
+    raw, micro = bands["raw"], bands["micro"]
+    values = contact_parameters(raw.heights, micro.heights, micro.dx, micro.dy, opt.contact_top_pct)
+    return {CROSS_BAND_GROUPS["contact"]: {k: (float(v), UNITS[k]) for k, v in values.items()}}

@@ -14,7 +14,7 @@ from skidsim.surface import Surface
 from .despeckle import despeckle
 from .filters import separate_bands
 from .mpd import MPDResult, mean_profile_depth
-from .parameters import UNITS, TextureOptions, areal_parameters
+from .parameters import UNITS, TextureOptions, areal_parameters, cross_band_parameters
 
 LONG_COLUMNS = ["site", "band", "parameter", "value", "unit"]
 BANDS = ("raw", "macro", "micro")
@@ -150,6 +150,8 @@ def band_parameters(bands: dict[str, Surface], options: TextureOptions) -> dict[
         results = [run(u) for u in units]
     out: dict[str, dict[str, tuple[float, str]]] = {b: {} for b in BANDS}
     for (b, _), r in zip(units, results):
+        out[b].update(r)
+    for b, r in cross_band_parameters(bands, options).items():
         out[b].update(r)
     return {b: {k: out[b][k] for k in UNITS if k in out[b]} for b in BANDS}
 
