@@ -29,7 +29,8 @@ replaced, and the height parameters and MPD of ``characterise`` (error against t
 ``--old PATH`` compares the texture stage of another checkout (``git worktree add /tmp/skidsim-old HEAD``: its
 ``src/skidsim/texture`` is imported as a separate package, the rest of skidsim from this tree) with this tree's on
 the same scan, in the same process: per workflow step (despeckle: ``despeckle_detail`` + ``scan_quality`` +
-``fill_invalid``; separate_bands; mpd; texture_parameters: ``areal_parameters`` on raw, macro and micro, one
+``fill_invalid``; separate_bands; mpd; texture_parameters: ``areal_parameters`` on raw, macro and micro (and
+``cross_band_parameters``, the contact zone, where the checkout has it), one
 thread) the CPU seconds of each, old and new alternating after one untimed run of each (imports, memoised
 tables), median of ``--compare-repeats`` (3), the ratio new/old, and every number of the steps' outputs compared
 (each parameter of the three bands, the MPD, its SD, counts and segment depths, the scan-quality measures, the
@@ -174,7 +175,11 @@ def texture_steps(tex, quality, scan: Surface, workers: int = 1):
         return {"mpd": tex.mean_profile_depth(out["clean"], **opt.mpd_kwargs())}
 
     def params_step(out):
-        return {"params": {b: tex.areal_parameters(out["bands"][b], b, opt) for b in ("raw", "macro", "micro")}}
+        params = {b: tex.areal_parameters(out["bands"][b], b, opt) for b in ("raw", "macro", "micro")}
+        cross = getattr(tex, "cross_band_parameters", None)  # the contact zone, as the workflow's rule (newer trees)
+        for b, extra in (cross(out["bands"], opt) if cross is not None else {}).items():
+            params[b].update(extra)
+        return {"params": params}
 
     return [
         ("despeckle", despeckle_step),

@@ -24,9 +24,6 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Names and units of the contact-zone parameters (reported with the micro band).
-CONTACT_UNITS = {"Sq_top": "mm", "Sdq_top": "1"}
-
 
 def top_zone(raw: np.ndarray, top_pct: float) -> np.ndarray:
     """Boolean mask of the points of ``raw`` (mm, complete) at or above ``Smc(top_pct)``, the height at the areal
@@ -63,4 +60,4 @@ def contact_parameters(
     return {"Sq_top": sq, "Sdq_top": float(np.sqrt(mx + my))}
 
 
-__all__ = ["CONTACT_UNITS", "top_zone", "contact_parameters"]
+__all__ = ["top_zone", "contact_parameters"]

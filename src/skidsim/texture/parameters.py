@@ -81,7 +81,7 @@ GROUPS = {
     "contact": ("Sq_top", "Sdq_top"),
 }
 
-#: Groups computed from two bands together, reported with one band (:func:`band_set_parameters`).
+#: Groups computed from two bands together, reported with one band (:func:`cross_band_parameters`).
 CROSS_BAND_GROUPS = {"contact": "micro"}
 
 

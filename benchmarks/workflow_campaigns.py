@@ -1,0 +1,152 @@
+"""Issue 33, item 4: the named cause of hidden-effect campaigns through the whole workflow (scans, texture, the real
+FE, calibration, regression, diagnosis), several seeds per kind.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/workflow_campaigns.py WORKDIR [--seeds 8,9] [--kinds KIND,...]
+
+The campaigns are those of ``make test-campaigns`` (tests/test_diagnosis_workflow*.py), built by the same
+functions, with only the seed changed (the tests use seed 7):
+
+* ``none``: the default generator's truth (exponential-decay law of the texture), no effect; 16 sites (8 sections
+  x 2), as the test. Right: nothing named.
+* ``site_column``: friction falls with ``station_ft`` (-0.03 % per ft). Right: station_ft (or its group).
+* ``section_column``: the three "WMA chemical" sections of ``mix`` are 0.05 lower; 24 sites. Right: mix.
+* ``temperature``: seasons 5-35 deg C, the truth's WLF shift. Right: temperature_c.
+* ``drainage``: the squeeze form of macrotexture drainage (size 0.3), a texture x speed effect within sites.
+  Right: an MPD column x speed.
+* ``texture_speed``: the spectral generator's hysteresis growing with speed and the macro rms slope (kappa 0.8),
+  with decoy columns. Right: the texture model, or a texture parameter x speed.
+* ``texture_measure``: the chips generator's level set by the contact-zone microtexture (kappa 2.0), with decoy
+  columns. Right: the texture model or a texture parameter between sites (the rates' score; the test asks the
+  texture model).
+* ``texture_speed_chips`` (not in the default list): the hysteresis effect of ``texture_speed`` on the chips
+  generator. The spectral generator's own friction exceeds mu 1.5 near the end of the spin-down on some sites of
+  seeds 8-13 (1.50-2.03 at kappa 0.8; also at 0.4 and 0.6; checked 2026-11-30), which the workflow's input check
+  refuses (the run stops before any job, naming the traces); seed 7, the test's, stays below.
+
+Every campaign runs in its own directory ``WORKDIR/<kind>-<seed>`` with 2 cores. Prints one markdown table (kind,
+seed, named top cause, right or not, its p_adjusted, the gain of its extension established at held-out sites or
+speeds) and writes ``WORKDIR/workflow_campaigns.csv``. Cost: about 3 min per campaign on 2 cores (2026-11-30).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+KINDS = ("none", "site_column", "section_column", "temperature", "drainage", "texture_speed", "texture_measure")
+#: Not in the default list: the texture x speed effect on the chips generator's campaigns (below).
+EXTRA_KINDS = ("texture_speed_chips",)
+
+
+def run_kind(kind: str, seed: int, workdir: Path) -> dict:
+    """Run one campaign; return ``{"causes", "gain"}`` of its diagnosis."""
+    from test_diagnosis_workflow import NO_EFFECTS, run_campaign
+    from test_diagnosis_workflow_effects import SEASONS
+    from test_diagnosis_workflow_texture import run_texture_campaign
+
+    workdir.mkdir(parents=True, exist_ok=True)
+    if kind == "none":
+        return run_campaign(
+            workdir, seed=seed, effects=NO_EFFECTS, sections="[E1, E2, E3, E4, E5, E6, C1, C2]", sites_per_section=2
+        )
+    if kind == "site_column":
+        eff = NO_EFFECTS.replace(
+            "metadata: {enabled: false}", "metadata: {enabled: true, column: station_ft, size: -0.0003, reference: 0.0}"
+        )
+        return run_campaign(workdir, seed=seed, effects=eff)
+    if kind == "section_column":
+        eff = NO_EFFECTS + """    section: {enabled: true, column: mix, offsets: {"WMA chemical": -0.05}}\n"""
+        return run_campaign(workdir, seed=seed, effects=eff, sites_per_section=2)
+    if kind == "temperature":
+        eff = NO_EFFECTS.replace("temperature: {enabled: false}", "temperature: {enabled: true}")
+        return run_campaign(workdir, seed=seed, effects=eff, synthetic_extra=SEASONS)
+    if kind == "drainage":
+        eff = NO_EFFECTS.replace("drainage: {enabled: false}", "drainage: {enabled: true, form: squeeze, size: 0.3}")
+        return run_campaign(workdir, seed=seed, effects=eff)
+    if kind == "texture_speed":
+        return run_texture_campaign(workdir, "spectral", "hysteresis", 0.8, seed=seed)
+    if kind == "texture_measure":
+        return run_texture_campaign(workdir, "chips", "contact_micro", 2.0, seed=seed)
+    if kind == "texture_speed_chips":
+        return run_texture_campaign(workdir, "chips", "hysteresis", 0.8, seed=seed)
+    raise ValueError(f"unknown kind {kind!r}; expected one of {KINDS + EXTRA_KINDS}")
+
+
+def is_right(kind: str, top: dict | None) -> bool:
+    """Whether the named cause ``top`` (None: nothing named) is the hidden one (module docstring)."""
+    if kind == "none":
+        return top is None
+    if top is None:
+        return False
+    var, group = str(top["variable"]), list(top.get("group") or [])
+    texture_model = top.get("source") == "texture_model" or var.startswith("texture_model[")
+    if kind == "site_column":
+        return (var == "station_ft" or "station_ft" in group) and top["level"] == "between-site"
+    if kind == "section_column":
+        return var == "mix"
+    if kind == "temperature":
+        return var == "temperature_c"
+    if kind == "drainage":
+        return "MPD" in var.upper() and top["kind"] == "x_speed"
+    if kind in ("texture_speed", "texture_speed_chips"):
+        return texture_model or (top.get("source") == "texture" and top["kind"] == "x_speed")
+    if kind == "texture_measure":
+        return (texture_model or top.get("source") == "texture") and top["level"] == "between-site"
+    raise ValueError(kind)
+
+
+def gain_established(gain: dict) -> bool | None:
+    """Whether the 95 % interval of the named cause's gain, in the scope the extension was judged on, excludes 0."""
+    scope = gain.get("scope")
+    rec = (gain.get("scopes") or {}).get(scope) if scope else None
+    return None if not rec else bool(rec.get("gain_excludes_zero"))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("workdir")
+    ap.add_argument("--seeds", default="8,9")
+    ap.add_argument("--kinds", default=",".join(KINDS))
+    a = ap.parse_args()
+    import pandas as pd
+
+    root = Path(a.workdir)
+    rows = []
+    for seed in (int(s) for s in a.seeds.split(",")):  # every kind once before any kind twice
+        for kind in a.kinds.split(","):
+            t0 = time.perf_counter()
+            try:
+                out = run_kind(kind, seed, root / f"{kind}-{seed}")
+            except Exception as exc:  # a failed run is a row, not the end of the benchmark
+                rows.append({"kind": kind, "seed": seed, "named": f"run failed: {exc}"[:200], "right": False})
+                print(rows[-1], flush=True)
+                continue
+            causes = out["causes"]
+            top = causes[0] if causes and causes[0]["significant"] else None
+            label = "" if top is None else (top.get("label") or "")
+            named = "nothing" if top is None else f"{top['variable']} ({top['level']}, {top['kind']})"
+            rows.append(
+                {
+                    "kind": kind,
+                    "seed": seed,
+                    "named": named + (f" [{label}]" if label.startswith("section") else ""),
+                    "right": is_right(kind, top),
+                    "p_adjusted": None if top is None else top["p_adjusted"],
+                    "gain_established": None if top is None else gain_established(out["gain"]),
+                    "extension": out["gain"].get("extension"),
+                    "wall_s": round(time.perf_counter() - t0, 1),
+                }
+            )
+            print(rows[-1], flush=True)
+    df = pd.DataFrame(rows)
+    df.to_csv(root / "workflow_campaigns.csv", index=False)
+    print(df.to_markdown(index=False))
+
+
+if __name__ == "__main__":
+    main()
