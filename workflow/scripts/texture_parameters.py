@@ -16,9 +16,7 @@ log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site
 o = TextureOptions(**snakemake.params.cfg)
 bands = load_surfaces(snakemake.input.bands)
-params = {band: texture.areal_parameters(bands[band], band, o) for band in ("raw", "macro", "micro")}
-for band, extra in texture.cross_band_parameters(bands, o).items():  # the micro band on the tops (contact)
-    params[band].update(extra)
+params = texture.band_parameters(bands, o)
 mpd_dict = json.loads(open(snakemake.input.mpd).read())
 mpd_dict["msd_mm"] = np.asarray(mpd_dict.get("msd_mm") or [], dtype=float)
 mpd = MPDResult(**{k: v for k, v in mpd_dict.items() if k in MPDResult.__dataclass_fields__})

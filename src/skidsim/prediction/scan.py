@@ -16,17 +16,10 @@ from pathlib import Path
 import pandas as pd
 
 from skidsim.scans import read_scan
-from skidsim.texture import (
-    TextureOptions,
-    areal_parameters,
-    cross_band_parameters,
-    despeckle_detail,
-    fill_invalid,
-    mean_profile_depth,
-)
+from skidsim.texture import TextureOptions, despeckle_detail, fill_invalid, mean_profile_depth
 from skidsim.texture import separate_bands as _separate_bands
 from skidsim.texture.quality import QualityOptions, ScanQuality, breaches, scan_quality
-from skidsim.texture.table import campaign_table, texture_table
+from skidsim.texture.table import band_parameters, campaign_table, texture_table
 
 
 @dataclass(frozen=True)
@@ -57,9 +50,7 @@ def scan_features(path, texture: TextureOptions, quality: QualityOptions, site: 
         clean, macro=tuple(texture.macro_mm), order=texture.butterworth_order, form=texture.form, fill=texture.fill
     )
     mpd = mean_profile_depth(clean, **texture.mpd_kwargs())
-    params = {band: areal_parameters(bands[band], band, texture) for band in ("raw", "macro", "micro")}
-    for band, extra in cross_band_parameters(bands, texture).items():  # as the workflow's texture_parameters
-        params[band].update(extra)
+    params = band_parameters(bands, texture)  # as the workflow's texture_parameters
     wide = campaign_table(texture_table(site, params, mpd))
     row = {c: float(v) for c, v in wide.iloc[0].items() if c != "site"}
     return ScanFeatures(site, row, q, tuple(breaches(q, quality)))

@@ -9,6 +9,7 @@ Public API (stable names the workflow calls)::
         -> {"raw", "macro", "micro"} Surfaces
     areal_parameters(surface, band, options) -> {name: (value, unit)}
     cross_band_parameters(bands, options) -> {band: {name: (value, unit)}}  (contact zone: micro on the tops)
+    band_parameters(bands, options) -> {band: {name: (value, unit)}}  (both, every band: the workflow's set)
     mean_profile_depth(surface, ...) -> MPDResult
     texture_table / campaign_table / table4_statistics / characterise
 
@@ -36,6 +37,7 @@ __all__ = [
     "cross_band_parameters",
     "TextureOptions",
     "areal_parameters",
+    "band_parameters",
     "campaign_table",
     "characterise",
     "table4_statistics",
@@ -45,7 +47,14 @@ __all__ = [
 
 #: names of .table (pandas) imported on first use (PEP 562): a step that only despeckles, filters or computes
 #: the MPD then starts without pandas (about 0.4 s of the start-up of each of the 4 x 36 per-site jobs)
-_TABLE_NAMES = ("campaign_table", "characterise", "table4_statistics", "texture_table", "write_texture_table")
+_TABLE_NAMES = (
+    "band_parameters",
+    "campaign_table",
+    "characterise",
+    "table4_statistics",
+    "texture_table",
+    "write_texture_table",
+)
 
 
 def __getattr__(name: str):

@@ -132,25 +132,26 @@ _TASKS = (("features", "motifs"), ("spatial",), ("height", "hybrid", "material_r
 
 
 def band_parameters(bands: dict[str, Surface], options: TextureOptions) -> dict[str, dict[str, tuple[float, str]]]:
-    """:func:`areal_parameters` of the raw, macro and micro bands. With ``options.workers > 1`` the
-    (band, parameter group) work units run in a thread pool of that size (NumPy, SciPy release the GIL in
-    their heavy loops); results do not depend on the number of workers."""
-    wanted = set(options.groups)
-    units = [(b, tuple(g for g in task if g in wanted)) for b in BANDS for task in _TASKS]
-    units = [(b, g) for b, g in units if g]
-
-    def run(unit):
-        b, g = unit
-        return areal_parameters(bands[b], b, replace(options, groups=g, workers=1))
-
-    if options.workers > 1:
-        with ThreadPoolExecutor(max_workers=options.workers) as pool:
-            results = list(pool.map(run, units))
-    else:
-        results = [run(u) for u in units]
+    """Every parameter of the raw, macro and micro bands: :func:`areal_parameters` of each band and
+    :func:`cross_band_parameters` (the contact zone). The one home of that set, for the workflow's rule, the scans
+    of ``skidsim predict`` and :func:`characterise`. With ``options.workers > 1`` the (band, parameter group) work
+    units run in a thread pool of that size (NumPy, SciPy release the GIL in their heavy loops); otherwise one
+    call per band. Results do not depend on the number of workers."""
     out: dict[str, dict[str, tuple[float, str]]] = {b: {} for b in BANDS}
-    for (b, _), r in zip(units, results):
-        out[b].update(r)
+    if options.workers > 1:
+        wanted = set(options.groups)
+        units = [(b, tuple(g for g in task if g in wanted)) for b in BANDS for task in _TASKS]
+        units = [(b, g) for b, g in units if g]
+
+        def run(unit):
+            b, g = unit
+            return areal_parameters(bands[b], b, replace(options, groups=g, workers=1))
+
+        with ThreadPoolExecutor(max_workers=options.workers) as pool:
+            for (b, _), r in zip(units, pool.map(run, units)):
+                out[b].update(r)
+    else:
+        out = {b: areal_parameters(bands[b], b, options) for b in BANDS}
     for b, r in cross_band_parameters(bands, options).items():
         out[b].update(r)
     return {b: {k: out[b][k] for k in UNITS if k in out[b]} for b in BANDS}
