@@ -35,7 +35,8 @@ class Cause:
     ``z``: (T - mean T_perm) / sd T_perm (standardised statistic); ``group``: numeric candidates with
     |Pearson r| >= corr_group across sites (itself included), or for texture parameters the members of its
     texture cluster; ``significant``: p_adjusted <= fdr and cv_gain > 0, or named for a significant section
-    effect by rule 3b of the naming rule (``explains``; :func:`section_explanations`). ``family``: "primary"
+    effect by rule 3b of the naming rule (``explains``; :func:`section_explanations`) or as the coarser description
+    of a finer significant grouping by rule 3c (:func:`refinement_descriptions`). ``family``: "primary"
     (functional form and the physical hypotheses: temperature, MPD x speed), "secondary" (every other candidate)
     or "child" (the texture model x speed between sites, asked only under a significant section x speed effect:
     :func:`skidsim.criticism.screening.texture_speed_tests`); ``unit``: the
@@ -56,8 +57,9 @@ class Cause:
     section identity between sites, the p of a section effect in the measured curves beyond a quadratic texture
     model in the prediction model's terms (:func:`skidsim.criticism.screening.section_rest_tests`; NaN
     elsewhere); ``explains``: the section effect (``section (<level>, <kind>)``) a section-level column is named
-    for by rule 3b of :func:`section_rule`, which makes it significant although its own p_adjusted is above fdr
-    (empty otherwise).
+    for by rule 3b of :func:`section_rule`, or the finer significant grouping (``<column> (<level>, <kind>)``) it
+    describes by rule 3c (:func:`refinement_descriptions`); either makes it significant although its own
+    p_adjusted is above fdr (empty otherwise).
     """
 
     variable: str
@@ -193,6 +195,98 @@ def refines(fine: Cause, coarse: Cause, cov: pd.DataFrame) -> bool:
         return False
     n_fine, n_coarse = pair["f"].nunique(), pair["c"].nunique()
     return n_coarse < n_fine or (n_coarse == n_fine and coarse.dtype != "categorical")
+
+
+def _nests(fine: str, coarse: str, cov: pd.DataFrame) -> pd.DataFrame | None:
+    """The sections' values of ``fine`` and ``coarse`` (columns ``f``, ``c``; one row per section) when ``fine``'s
+    partition of the sections refines ``coarse``'s strictly (every level of ``fine`` within one value of
+    ``coarse``, and more levels); else None. Needs a ``section`` column in ``cov`` (one row per site)."""
+    if not {"section", fine, coarse} <= set(cov.columns) or fine == coarse:
+        return None
+    pair = pd.DataFrame({"s": cov["section"], "f": cov[fine], "c": cov[coarse]}).dropna()
+    if not len(pair) or int(pair.groupby("s")[["f", "c"]].nunique().max().max()) != 1:
+        return None  # not constant within sections
+    sec = pair.drop_duplicates("s")
+    if int(sec.groupby("f")["c"].nunique().max()) != 1 or sec["f"].nunique() <= sec["c"].nunique():
+        return None
+    return sec[["f", "c"]]
+
+
+def split_arrangements(sec: pd.DataFrame) -> int:
+    """The number of distinct partitions of the sections that the finer grouping (``sec["f"]``, one row per section)
+    can take within the levels of the coarser one (``sec["c"]``) it refines: per coarser level of ``n`` sections
+    split into groups of sizes ``k_1 .. k_m``, ``n! / (prod k_i! prod_s m_s!)`` (``m_s`` groups of size ``s``:
+    swapping two equal groups gives the same partition), multiplied over the levels. An exact permutation test of
+    the finer grouping beyond the coarser one (its labels permuted over the sections within the coarser levels) has
+    ``p >= 1 / split_arrangements``."""
+    total = 1
+    for _, g in sec.groupby("c"):
+        sizes = g["f"].value_counts().to_numpy()
+        n = int(sizes.sum())
+        count = math.factorial(n)
+        for k in sizes:
+            count //= math.factorial(int(k))
+        for m in pd.Series(sizes).value_counts().to_numpy():
+            count //= math.factorial(int(m))
+        total *= count
+    return total
+
+
+def refinement_descriptions(
+    causes: list[Cause], cov: pd.DataFrame, fdr: float, share_min: float = SECTION_SHARE_MIN
+) -> list[Cause]:
+    """Rule 3c of the naming rule (docs/model-criticism.md): a significant section-level grouping F (a sites.csv
+    column) that refines a coarser sites.csv column C (same level and kind; :func:`_nests`) which is not significant
+    on its own is described by C, when
+
+    * the split F adds to C cannot be established at any data: its exact permutation test within C's levels has
+      :func:`split_arrangements` ``N`` arrangements, ``1 / N > fdr`` (e.g. a free-text comment that sets one of the
+      seven HMA sections apart: N = 7, p >= 0.14);
+    * C has its own evidence: its permutation p over the sections ``<= fdr`` and ``cv_gain > 0``;
+    * C carries at least ``share_min`` of what F explains: ``C.section_share >= share_min F.section_share`` (the
+      shares of the same section effect; C's partition is nested in F's).
+
+    Why: what F explains beyond C is, by the design, indistinguishable from section identity (a single section's
+    deviation); the part both hold is C's contrast, which has its own evidence, and F's significance is the
+    discovery that a section-level grouping matters. C is returned with ``significant`` True and ``explains`` =
+    ``F (level, kind)``; the refinement rule (:func:`order_by_refinement`) then ranks it above F. Of several such
+    C, the one with the largest share."""
+    out = list(causes)
+    for F in [c for c in out if c.significant and c.section_level and c.source == "sites" and not c.section_id]:
+        if F.dtype != "categorical" or not np.isfinite(F.section_share) or F.section_share <= 0:
+            continue
+        best, best_share = None, -np.inf
+        for C in out:
+            if (
+                C.significant
+                or C is F
+                or C.level != F.level
+                or C.kind != F.kind
+                or not C.section_level
+                or C.source != "sites"
+                or C.section_id
+                or not (C.p_value <= fdr and C.cv_gain > 0.0)
+                or not (np.isfinite(C.section_share) and C.section_share >= share_min * F.section_share)
+            ):
+                continue
+            sec = _nests(F.variable, C.variable, cov)
+            if sec is None or 1.0 / split_arrangements(sec) <= fdr:
+                continue
+            if C.section_share > best_share:
+                best, best_share = C, C.section_share
+        if best is not None:
+            out[_pos(out, best)] = replace(best, significant=True, explains=f"{F.variable} ({F.level}, {F.kind})")
+    return out
+
+
+def _descriptions_at_their_groupings(causes: list[Cause]) -> None:
+    """A coarser description of rule 3c (:func:`refinement_descriptions`) takes the rank of the finer grouping it
+    describes: it moves right above it, whatever its own cv_msr (it renames that grouping's evidence, no more). In
+    place."""
+    for C in [c for c in causes if c.explains and not c.explains.startswith("section (")]:
+        F = next((f for f in causes if f"{f.variable} ({f.level}, {f.kind})" == C.explains and f.significant), None)
+        if F is not None:
+            _move(causes, C, _pos(causes, F) if _pos(causes, C) > _pos(causes, F) else _pos(causes, F) - 1)
 
 
 def order_by_refinement(causes: list[Cause], cov: pd.DataFrame) -> list[Cause]:
@@ -437,8 +531,9 @@ def section_explanations(causes: list[Cause], fdr: float, share_min: float = SEC
 
 
 def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr: float | None = None) -> list[Cause]:
-    """Rule 3b of the naming rule of a section effect first (:func:`section_explanations`, at ``fdr``; None: the
-    default of :class:`~skidsim.criticism.options.DiagnosisOptions`); then
+    """Rules 3b and 3c of the naming rule of a section effect first (:func:`section_explanations`,
+    :func:`refinement_descriptions`, at ``fdr``; None: the default of
+    :class:`~skidsim.criticism.options.DiagnosisOptions`); then
     significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
     ``z``; then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
     (:func:`section_rule`), MPD x speed above the texture clusters holding MPD, the within-site functional form
@@ -446,7 +541,9 @@ def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr
     if fdr is None:
         fdr = DiagnosisOptions().fdr
     causes = section_explanations(causes, fdr)
+    causes = refinement_descriptions(causes, cov, fdr)
     causes = sorted(causes, key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
+    _descriptions_at_their_groupings(causes)
     causes = order_by_refinement(causes, cov)
     causes = section_rule(causes, fdr=fdr)
     _mpd_above_its_clusters(causes, mpd_col)

@@ -93,7 +93,18 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         + ".",
         "",
     ]
-    if top.get("explains"):
+    if top.get("explains") and not str(top["explains"]).startswith("section ("):
+        lines += [
+            f"Named as the coarser description of the significant grouping `{top['explains']}` (rule 3c of the "
+            f"naming rule): that grouping splits `{top['variable']}`'s levels further only where the split cannot be "
+            "established at any data (an exact permutation test within its levels cannot reach p <= fdr: it sets "
+            f"apart a section or two, as section identity would); `{top['variable']}` carries "
+            f"{top['section_share']:.0%} of the section effect, and its own permutation test over the sections has "
+            f"p = {top['p_value']:.2g} "
+            "(p_adj above fdr over the section-level columns).",
+            "",
+        ]
+    elif top.get("explains"):
         lines += [
             f"Named as the explanation of the significant `{top['explains']}` effect (rule 3b of the naming rule): "
             f"it explains {top['section_share']:.0%} of it, its own permutation test over the sections has p = "
