@@ -541,6 +541,21 @@ def test_rule_3b_names_the_column_that_carries_a_section_effect_without_its_own_
     assert out[0].variable == "mix" and not next(c for c in out if c.variable == "aggregate").significant
 
 
+def test_an_affine_copy_of_the_mpd_column_does_not_take_its_rank():
+    """The texture table holds ETD = 1.1 MPD: its tests give MPD's statistics up to rounding in the last bits
+    (drainage campaign of the workflow at seed 9: cv_msr 6.135778618160246e-05 for ETD, ...239e-05 for MPD). The
+    MPD column ranks first; a real difference in the tenth digit still decides."""
+    from skidsim.criticism.causes import rank_causes
+
+    mpd = replace(_cause("profile_MPD", 0.49, section_level=False, source="texture"), cv_msr=6.135778618160239e-05)
+    etd = replace(mpd, variable="profile_ETD", cv_msr=6.135778618160246e-05)
+    cov = pd.DataFrame(index=range(3))
+    assert [c.variable for c in rank_causes([etd, mpd], cov, "profile_MPD")] == ["profile_MPD", "profile_ETD"]
+    assert [c.variable for c in rank_causes([etd, mpd], cov, None)] == ["profile_ETD", "profile_MPD"]
+    better = replace(etd, cv_msr=6.1358e-05)
+    assert [c.variable for c in rank_causes([mpd, better], cov, "profile_MPD")] == ["profile_ETD", "profile_MPD"]
+
+
 #: the sections of the workflow's default campaign: mix and the free-text comment that refines it (E1 is the only
 #: HMA section "with RAP + RAS", C1-C6 are "with RAP"), two sites per section
 _MIX = {"E1": "HMA", "E2": "WMA foaming", "E3": "WMA chemical", "E4": "WMA chemical", "E5": "WMA chemical"}

@@ -530,19 +530,32 @@ def section_explanations(causes: list[Cause], fdr: float, share_min: float = SEC
     return out
 
 
+def _tie(x: float) -> float:
+    """``x`` to 10 significant digits: an affine copy of a column (the texture stage's ETD = 1.1 MPD) gets the same
+    statistics up to rounding in the last bits, which should not decide the order."""
+    return float(f"{x:.10g}")
+
+
+def _rank_key(c: Cause, mpd_col: str | None) -> tuple:
+    """The ranking's sort key (:func:`rank_causes`): significant first, then cv_msr (significant) or p_adjusted,
+    then z; on ties (to 10 digits) the MPD column first."""
+    return (not c.significant, _tie(-c.cv_msr) if c.significant else c.p_adjusted, _tie(-c.z), c.variable != mpd_col)
+
+
 def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr: float | None = None) -> list[Cause]:
     """Rules 3b and 3c of the naming rule of a section effect first (:func:`section_explanations`,
     :func:`refinement_descriptions`, at ``fdr``; None: the default of
     :class:`~skidsim.criticism.options.DiagnosisOptions`); then
     significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
-    ``z``; then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
+    ``z``, and on ties (to 10 significant digits) the MPD column ``mpd_col`` first (a texture table also holds its
+    affine copies, e.g. ETD); then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
     (:func:`section_rule`), MPD x speed above the texture clusters holding MPD, the within-site functional form
     below a significant within-site covariate x speed."""
     if fdr is None:
         fdr = DiagnosisOptions().fdr
     causes = section_explanations(causes, fdr)
     causes = refinement_descriptions(causes, cov, fdr)
-    causes = sorted(causes, key=lambda c: (not c.significant, -c.cv_msr if c.significant else c.p_adjusted, -c.z))
+    causes = sorted(causes, key=lambda c: _rank_key(c, mpd_col))
     _descriptions_at_their_groupings(causes)
     causes = order_by_refinement(causes, cov)
     causes = section_rule(causes, fdr=fdr)
