@@ -9,10 +9,25 @@ import numpy as np
 import pytest
 from scipy import fft as sfft
 from scipy import ndimage
-from test_texture_speed import pavement  # the same pavement-like fields as the texture speed tests
+from test_texture_speed import (  # the same pavement-like fields and plain forms as the texture speed tests
+    pavement,
+    ref_autocorrelation,
+    ref_catchment_basins,
+)
 
 from skidsim.surface import Surface
-from skidsim.texture import features, filters, furrows, height, hybrid, pairwise, quality
+from skidsim.texture import (
+    TextureOptions,
+    areal_parameters,
+    features,
+    filters,
+    furrows,
+    height,
+    hybrid,
+    pairwise,
+    quality,
+    spatial,
+)
 from skidsim.texture import segmentation as seg
 from skidsim.texture.features import feature_parameters, pruning_threshold
 
@@ -42,6 +57,7 @@ def small_blocks(monkeypatch):
     monkeypatch.setattr(desp, "_BLOCK_POINTS", 200)
     monkeypatch.setattr(filters, "_BLOCK_POINTS", 300)
     monkeypatch.setattr(furrows, "_BLOCK_POINTS", 400)
+    monkeypatch.setattr(furrows, "_COLUMN_BLOCK_POINTS", 500)
     monkeypatch.setattr(pairwise, "LEAF_POINTS", 256)
     monkeypatch.setattr(seg, "_BLOCK_POINTS", 150)
     monkeypatch.setattr(seg, "_SADDLE_STRIP_POINTS", 250)
@@ -300,6 +316,81 @@ def test_deepest_motifs_on_a_coded_scan_with_plateaus_and_a_grown_window():
         t = pct / 100 * float(z.max() - z.min())
         for d in (z, -z):
             same(seg.deepest_motifs(d, t, 5), seg.segment(d, t, 0.05, 0.05).critical[:5])
+
+
+@pytest.mark.parametrize("name", list(FIELDS))
+@pytest.mark.parametrize("blocks", [False, True])
+def test_catchment_basins_of_the_flat_blocked_descent(name, blocks, request):
+    """The descent on flat padded blocks of rows (blocks of 8 rows; shrunk: a few points) and the sink labels
+    without ndimage.label where no two sinks touch: the basins of the whole-array form, and its peaks."""
+    if blocks:
+        request.getfixturevalue("small_blocks")
+    z = FIELDS[name]()
+    for d in (z, -z, z[:1], z[:, :1], z[:3, :4]):
+        labels, n, sink = seg.catchment_basins(d)
+        rl, rn, rs = ref_catchment_basins(d)
+        assert n == rn
+        same(labels, rl)
+        same(sink, rs)
+        peaks = seg._descent(d, peaks=True)[2]
+        same(peaks, ndimage.maximum_filter(d, footprint=np.ones((3, 3)), mode="nearest") == d)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (9, 1), (2, 2), (5, 7), (40, 57), (97, 131)])
+@pytest.mark.parametrize("share", [0.0, 0.01, 0.05, 0.3, 1.0])
+def test_sink_labels_are_ndimage_labels(shape, share):
+    """Isolated sinks (the fast path: labels in raster order) and touching ones (ndimage.label)."""
+    rng = np.random.default_rng(int(share * 1000) + shape[1])
+    for _ in range(5):
+        mask = rng.random(shape) < share
+        markers, n, idx, first = seg._sink_labels(mask)
+        ref, rn = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
+        assert n == rn
+        same(markers, ref)
+        same(idx, np.flatnonzero(mask))
+        same(first, seg._first_sinks(idx, ref.ravel()[idx], rn))
+
+
+@pytest.mark.parametrize("rows_per_call", [1, 3, 7, 64])
+@pytest.mark.parametrize("max_lag_fraction", [1.0, 0.5])
+def test_padded_spectrum_without_the_padding_rows(rows_per_call, max_lag_fraction, monkeypatch):
+    """rfft2 of the zero-padded heights from the rows of heights only, a few rows per transform (remainders
+    included), and |F|^2 formed in the spectrum's array: the bits of the whole-array form."""
+    monkeypatch.setattr(spatial, "_FFT_ROWS", rows_per_call)
+    for z in (FIELDS["coded (ties, plateaus)"](), FIELDS["white noise"](), FIELDS["two columns"]()):
+        acf, power, shape = spatial.autocorrelation(z, return_spectrum=True, max_lag_fraction=max_lag_fraction)
+        racf, rpower, rshape = ref_autocorrelation(z, max_lag_fraction)
+        assert tuple(shape) == tuple(rshape)
+        same(power, rpower)
+        same(acf, racf)
+        spec = sfft.rfft2(z - z.mean(), s=shape)
+        same(spatial._padded_spectrum(z, 1, shape), spec)
+
+
+def test_areal_parameters_reject_invalid_points_and_share_the_range():
+    """The finite-mean test lets no NaN or infinity through; the range of the heights read once (pruning
+    threshold, furrows) gives the values of the functions that compute it themselves."""
+    z = pavement(60, 70, 5, corr=3.0, quantum=0.01)
+    for bad in (np.nan, np.inf, -np.inf):
+        h = z.copy()
+        h[7, 9] = bad
+        with pytest.raises(ValueError, match="invalid points"):
+            areal_parameters(Surface(h, 0.05, 0.05), "raw", TextureOptions())
+    huge = np.full((10, 10), 1e308)
+    huge[::2] = -1e308  # finite heights whose sum overflows (NaN mean): the full check, which passes
+    with np.errstate(over="ignore", invalid="ignore"):
+        areal_parameters(Surface(huge, 0.05, 0.05), "raw", TextureOptions(groups=("height",)))
+    got = areal_parameters(Surface(z, 0.05, 0.05), "raw", TextureOptions())
+    zc = z - z.mean()
+    t = pruning_threshold(zc, 5.0, "Sz")
+    hills = seg.segment(-zc, t, 0.05, 0.05, keep_peaks=True)
+    ref = {
+        **feature_parameters(zc, 0.05, 0.05, hills=hills),
+        **furrows.furrow_parameters(zc, 0.05, 0.05),
+        **features.motif_parameters(zc, 0.05, 0.05, hills=hills),
+    }
+    for k, v in ref.items():
+        assert got[k][0] == v or (np.isnan(v) and np.isnan(got[k][0])), k
 
 
 @pytest.mark.parametrize("exclude_edge", [False, True])

@@ -48,10 +48,11 @@ def contact_parameters(
         raise ValueError(f"contact_parameters: raw {r.shape} and micro {m.shape} differ in shape")
     if min(m.shape) < 2:
         raise ValueError(f"contact_parameters: surface is {m.shape}, need >= 2x2")
-    if not np.isfinite(m).all():
+    mean = m.mean()
+    if not np.isfinite(mean) and not np.isfinite(m).all():  # a finite mean: no NaN, no infinity
         raise ValueError("contact_parameters: the micro band has invalid points; fill them first (fill_invalid)")
     top = top_zone(r, top_pct)
-    sq = float(np.sqrt(np.mean((m[top] - m.mean()) ** 2)))
+    sq = float(np.sqrt(np.mean((m[top] - mean) ** 2)))
     tx, ty = top[:, :-1], top[:-1, :]  # the differences whose first point is in the zone (only those are formed)
     gx = m[:, 1:][tx] - m[:, :-1][tx]
     gy = m[1:, :][ty] - m[:-1, :][ty]

@@ -65,7 +65,7 @@ _MIN_STEP_SHARE = 1e-6
 #: a height step above this share of the 0.5-99.5 % height range is no quantisation (a few distinct values)
 _MAX_STEP_SHARE = 0.05
 #: points of one block of rows of the 3 x 3 median (a few arrays of it stay in cache)
-_BLOCK_POINTS = 1 << 15
+_BLOCK_POINTS = 1 << 13
 #: floor of the local scale of ``local`` on continuous (unquantised) heights, mm: below the height resolution of
 #: pavement laser scanners (LS-40: 0.01 mm), above the curvature residual of a smooth stone on a 0.05 mm grid
 _CONTINUOUS_FLOOR_MM = 1e-3
@@ -129,11 +129,16 @@ def _median3x3(f: np.ndarray) -> np.ndarray:
     """``scipy.ndimage.median_filter(f, size=3, mode="nearest")`` of a complete array, the same values: per point
     the three columns of its 3 x 3 window are sorted, and the median of the nine is the median of (the largest
     column minimum, the median column median, the smallest column maximum); every step is a min or max, so the
-    result is one of the nine heights, as the rank filter's. Blocks of rows that stay in cache."""
+    result is one of the nine heights, as the rank filter's. Blocks of rows that stay in cache; every step runs on
+    the flat padded block (the three columns of a window are the flat run shifted by 0, 1 and 2; the results that
+    straddle two rows are dropped): one-dimensional loops."""
     rows, cols = f.shape
     out = np.empty(f.shape)
-    block = max(1, min(rows, _BLOCK_POINTS // (cols + 2)))
-    pad = np.empty((block + 2, cols + 2))
+    width = cols + 2
+    block = max(1, min(rows, _BLOCK_POINTS // width))
+    pad = np.empty((block + 2, width))
+    flat_pad = pad.ravel()
+    res = np.empty(block * width)
     for r0 in range(0, rows, block):
         r1 = min(r0 + block, rows)
         h = r1 - r0
@@ -143,34 +148,46 @@ def _median3x3(f: np.ndarray) -> np.ndarray:
         pb[h + 1, 1:-1] = f[min(r1, rows - 1)]
         pb[:, 0] = pb[:, 1]
         pb[:, -1] = pb[:, -2]
-        up, centre, down = pb[0:h], pb[1 : h + 1], pb[2 : h + 2]
+        n = h * width  # padded rows 1 .. h, every column
+        up, centre, down = flat_pad[0:n], flat_pad[width : width + n], flat_pad[2 * width : 2 * width + n]
         t1, t2 = np.minimum(up, centre), np.maximum(up, centre)
         lo, x = np.minimum(t1, down), np.maximum(t1, down)
         mid, hi = np.minimum(t2, x), np.maximum(t2, x)  # each column of three sorted: lo <= mid <= hi
-        lo_max = np.maximum(np.maximum(lo[:, :-2], lo[:, 1:-1]), lo[:, 2:])
-        hi_min = np.minimum(np.minimum(hi[:, :-2], hi[:, 1:-1]), hi[:, 2:])
-        a, b, c = mid[:, :-2], mid[:, 1:-1], mid[:, 2:]
+        m = n - 2  # the window of the point in padded column j + 1 spans flat j, j + 1, j + 2
+        lo_max = np.maximum(np.maximum(lo[:m], lo[1 : m + 1]), lo[2:])
+        hi_min = np.minimum(np.minimum(hi[:m], hi[1 : m + 1]), hi[2:])
+        a, b, c = mid[:m], mid[1 : m + 1], mid[2:]
         mid_med = np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
-        np.maximum(np.minimum(lo_max, mid_med), np.minimum(np.maximum(lo_max, mid_med), hi_min), out=out[r0:r1])
+        r = res[:m]
+        np.maximum(np.minimum(lo_max, mid_med), np.minimum(np.maximum(lo_max, mid_med), hi_min), out=r)
+        out[r0:r1] = res[:n].reshape(h, width)[:, :cols]
     return out
 
 
 def _box_mean(x: np.ndarray, size: int) -> np.ndarray:
     """``scipy.ndimage.uniform_filter(x, size, mode="constant")`` of a float64 array, the same bits: along y the
     running sum of ``uniform_filter1d`` (the first window summed in order, then ``+ (entering - leaving)``, each
-    sum divided by ``size``) as one cumulative sum, then SciPy's own pass along x."""
-    rows = x.shape[0]
+    sum divided by ``size``) as a cumulative sum, then SciPy's own pass along x. The cumulative sum runs row by
+    row (each row the previous one plus its difference, as ``np.cumsum(axis=0)`` adds them, without its strided
+    walk down the columns), each difference formed from the rows of ``x`` and a row of zeros for the constant
+    extension."""
+    rows, cols = x.shape
     s1 = size // 2
-    p = np.zeros((rows + size - 1, x.shape[1]))
-    p[s1 : s1 + rows] = x
+    zero = np.zeros(cols)
+
+    def ext(j: int) -> np.ndarray:
+        """Row ``j`` of ``x`` extended by ``s1`` rows of zeros above and ``size - 1 - s1`` below."""
+        return x[j - s1] if 0 <= j - s1 < rows else zero
+
     acc = np.empty(x.shape)
-    first = p[0].copy()
+    first = np.array(ext(0), dtype=np.float64)
     for k in range(1, size):
-        first += p[k]
+        first += ext(k)
     acc[0] = first
-    np.subtract(p[size : rows + size - 1], p[: rows - 1], out=acc[1:])
-    del p
-    np.cumsum(acc, axis=0, out=acc)
+    diff = np.empty(cols)
+    for i in range(1, rows):
+        np.subtract(ext(i + size - 1), ext(i - 1), out=diff)  # entering - leaving
+        np.add(acc[i - 1], diff, out=acc[i])
     acc /= size
     return ndimage.uniform_filter1d(acc, size, axis=1, mode="constant")
 

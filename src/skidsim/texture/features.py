@@ -31,7 +31,8 @@ PRUNING_REFERENCES = ("Sz", "Sq")
 def pruning_threshold(
     zc: np.ndarray, pruning_pct: float, reference: str, sz: float | None = None, sq: float | None = None
 ) -> float:
-    """Pruning height in mm: ``pruning_pct`` % of Sz or Sq of the mean-subtracted heights ``zc``."""
+    """Pruning height in mm: ``pruning_pct`` % of Sz or Sq of the mean-subtracted heights ``zc``; ``sz``
+    (``zc.max() - zc.min()``) or ``sq`` (``sqrt(mean(zc * zc))``) when the caller has it."""
     if reference not in PRUNING_REFERENCES:
         raise ValueError(f"pruning reference must be one of {PRUNING_REFERENCES}, got {reference!r}")
     if reference == "Sz":
@@ -71,9 +72,11 @@ def feature_parameters(
     spc_half_window: int = 2,
     hills: Segmentation | None = None,
     dales: Segmentation | None = None,
+    sz: float | None = None,
 ) -> dict[str, float]:
-    """Spc (1/mm), S10z S5p S5v (mm), Spd (1/mm^2), Shv (mm^3) of mean-subtracted heights ``zc`` (mm)."""
-    t = pruning_threshold(zc, pruning_pct, pruning_reference)
+    """Spc (1/mm), S10z S5p S5v (mm), Spd (1/mm^2), Shv (mm^3) of mean-subtracted heights ``zc`` (mm). ``sz``:
+    ``zc.max() - zc.min()`` when the caller has it (:func:`pruning_threshold`)."""
+    t = pruning_threshold(zc, pruning_pct, pruning_reference, sz=sz)
     if hills is None:
         hills = segment(-zc, t, dx, dy, keep_peaks=dales is None)
     if dales is None and exclude_edge:
@@ -107,15 +110,17 @@ def motif_parameters(
     pruning_reference: str = "Sz",
     exclude_edge: bool = False,
     hills: Segmentation | None = None,
+    sz: float | None = None,
 ) -> dict[str, float]:
     """Our motif parameters (MountainsMap's are not public; no equivalence claimed).
 
     Motifs = the significant hills of the Wolf-pruned watershed segmentation with threshold
     ``motif_threshold`` = ``pruning_pct`` % of the reference height (mm). Per motif: area (mm^2), volume above
     its base (mm^3), height = peak - base (mm). Returns motif_count, motif_threshold (mm), motif_mean_volume
-    (mm^3), motif_mean_height_surface_ratio (mean of height / area, mm/mm^2), motif_mean_area (mm^2).
+    (mm^3), motif_mean_height_surface_ratio (mean of height / area, mm/mm^2), motif_mean_area (mm^2). ``sz``:
+    ``zc.max() - zc.min()`` when the caller has it (:func:`pruning_threshold`).
     """
-    t = pruning_threshold(zc, pruning_pct, pruning_reference)
+    t = pruning_threshold(zc, pruning_pct, pruning_reference, sz=sz)
     if hills is None or hills.threshold_mm != t:
         hills = segment(-zc, t, dx, dy)
     k = hills.select(exclude_edge)

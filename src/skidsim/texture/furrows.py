@@ -20,21 +20,25 @@ import numpy as np
 
 #: points of one block of profiles in :func:`_furrow_depths` (a few arrays of it stay in cache)
 _BLOCK_POINTS = 1 << 15
+#: points of one block of columns in :func:`_column_furrow_depths`
+_COLUMN_BLOCK_POINTS = 1 << 16
 
 
-def _sliding_max(f: np.ndarray, size: int) -> np.ndarray:
-    """``W[j] = max(f[j : j + size])`` for ``j`` in ``0 .. len(f) - size``, exact: maxima over windows of 1, 2, 4,
-    ... ``p`` points by doubling (``p`` the largest power of two up to ``size``), then the two windows of ``p``
-    that cover the ``size`` points (they overlap; a maximum does not mind)."""
+def _sliding_max(f: np.ndarray, size: int, stride: int = 1) -> np.ndarray:
+    """``W[j] = max(f[j : j + size * stride : stride])`` for ``j`` in ``0 .. len(f) - (size - 1) stride - 1``,
+    exact: maxima over windows of 1, 2, 4, ... ``p`` points by doubling (``p`` the largest power of two up to
+    ``size``), then the two windows of ``p`` that cover the ``size`` points (they overlap; a maximum does not
+    mind). ``stride``: the step between the points of a window (the columns of a row-major block laid flat)."""
     p = 1 << (size.bit_length() - 1)
     cur, w = f, 1
     while w < p:
-        cur = np.maximum(cur[:-w], cur[w:])
+        cur = np.maximum(cur[: -w * stride], cur[w * stride :])
         w *= 2
-    n_out = f.size - size + 1
+    n_out = f.size - (size - 1) * stride
     if p == size:
         return cur
-    return np.maximum(cur[:n_out], cur[size - p : size - p + n_out])
+    shift = (size - p) * stride
+    return np.maximum(cur[:n_out], cur[shift : shift + n_out])
 
 
 def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf) -> tuple[np.ndarray, int]:
@@ -43,9 +47,11 @@ def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf)
 
     The maxima before and after a point are those of ``scipy.ndimage.maximum_filter1d(z, 2 (w // 2) + 1,
     mode="nearest")`` centred ``half`` points away (the same values: the nearest extension repeats the end value,
-    which the window holds anyway). Blocks of profiles, each extended by ``size`` points at both ends and laid end
-    to end in one buffer that stays in cache; every step runs on that flat buffer (the windows of the tested points
-    do not reach the next profile)."""
+    which the window holds anyway). Blocks of profiles, each extended by ``size`` points at both ends, in one
+    buffer that stays in cache; every step runs on that flat buffer. Rows (axis 1) are laid end to end (the windows
+    of the tested points do not reach the next profile); columns (axis 0) stay in row-major order, a block of
+    columns extended by ``size`` rows at the top and the bottom (no transposed copy), every window and neighbour a
+    shift by whole rows, and the depths are read out column by column."""
     size = 2 * (w // 2) + 1  # odd window of ~w points
     half = (size + 1) // 2
     n = z.shape[axis]
@@ -53,8 +59,10 @@ def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf)
         return np.empty(0), 0
     count = z.shape[1 - axis]  # profiles
     length = n + 2 * size  # extended profile
-    per = max(1, min(count, _BLOCK_POINTS // length))
     k0, k1 = size + half, size + n - half  # tested points of an extended profile
+    if axis == 0:
+        return _column_furrow_depths(z, size, min_depth, k0, k1), count * (n - 2 * half)
+    per = max(1, min(count, _BLOCK_POINTS // length))
     tested = np.zeros((per, length), dtype=bool)
     tested[:, k0:k1] = True
     tested = tested.ravel()
@@ -62,7 +70,7 @@ def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf)
     out = []
     for b0 in range(0, count, per):
         b1 = min(b0 + per, count)
-        prof = z[b0:b1] if axis == 1 else z[:, b0:b1].T
+        prof = z[b0:b1]
         bb = buf[: b1 - b0]
         bb[:, size : size + n] = prof
         bb[:, :size] = prof[:, :1]
@@ -82,11 +90,48 @@ def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf)
     return np.concatenate(out), count * (n - 2 * half)
 
 
+def _column_furrow_depths(z: np.ndarray, size: int, min_depth: float, k0: int, k1: int) -> np.ndarray:
+    """The depths of :func:`_furrow_depths` along axis 0 (the columns' profiles), column by column: blocks of
+    ``_COLUMN_BLOCK_POINTS`` points of columns, extended rows ``0 .. n + 2 size`` (the first and last row
+    repeated), row-major; the same values and tests as the rows' path, a shift by ``k`` rows being one by ``k``
+    times the block's width."""
+    n, count = z.shape
+    length = n + 2 * size
+    per = max(1, min(count, _COLUMN_BLOCK_POINTS // length))
+    buf = np.empty(length * per)
+    out = []
+    for c0 in range(0, count, per):
+        c1 = min(c0 + per, count)
+        cb = c1 - c0
+        f = buf[: length * cb]
+        e = f.reshape(length, cb)
+        e[size : size + n] = z[:, c0:c1]
+        e[:size] = z[0, c0:c1]
+        e[size + n :] = z[-1, c0:c1]
+        win = _sliding_max(f, size, cb)  # win[k cb + c]: max of rows k .. k + size - 1 of column c
+        lo, hi = k0 * cb, k1 * cb
+        zc = f[lo:hi]
+        depth = np.minimum(win[lo - size * cb : hi - size * cb], win[lo + cb : hi + cb])
+        depth -= zc
+        keep = zc < f[lo - cb : hi - cb]  # strict local minimum
+        keep &= zc < f[lo + cb : hi + cb]
+        keep &= depth >= min_depth
+        out.append(depth.reshape(-1, cb).T[keep.reshape(-1, cb).T])  # column by column
+    return np.concatenate(out)
+
+
 def furrow_parameters(
-    zc: np.ndarray, dx: float, dy: float, *, window_mm: float = 2.0, min_depth_pct: float = 5.0
+    zc: np.ndarray,
+    dx: float,
+    dy: float,
+    *,
+    window_mm: float = 2.0,
+    min_depth_pct: float = 5.0,
+    sz: float | None = None,
 ) -> dict[str, float]:
-    """Fdmax, Fdmean (mm), Fden (cm/cm^2) of heights ``zc`` (mm); see the module docstring."""
-    sz = float(zc.max() - zc.min())
+    """Fdmax, Fdmean (mm), Fden (cm/cm^2) of heights ``zc`` (mm); see the module docstring. ``sz``:
+    ``zc.max() - zc.min()`` when the caller has it."""
+    sz = float(zc.max() - zc.min()) if sz is None else sz
     tmin = min_depth_pct / 100.0 * sz
     total_depths = []
     p = []

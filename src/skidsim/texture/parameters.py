@@ -210,7 +210,10 @@ def areal_parameters(
     """
     opt = options if isinstance(options, TextureOptions) else TextureOptions.from_dict(options)
     z = surface.heights
-    if not np.isfinite(z).all():
+    # a finite mean means finite heights (a NaN or an infinity makes the sum NaN or infinite): the full check only
+    # where the mean is not finite
+    mean = z.mean() if z.size else np.nan
+    if not np.isfinite(mean) and not np.isfinite(z).all():
         raise ValueError(
             f"areal_parameters: surface {surface.name!r} band {band!r} has invalid points; "
             "fill them first (fill_invalid)"
@@ -218,9 +221,11 @@ def areal_parameters(
     if min(z.shape) < 8:
         raise ValueError(f"areal_parameters: surface {surface.name!r} band {band!r} is {z.shape}, need >= 8x8")
     dx, dy = surface.dx, surface.dy
-    zc = z - z.mean()
+    zc = z - mean
     out: dict[str, float] = {}
     g = set(opt.groups)
+    # the range of zc, read by the pruning threshold (reference Sz) and the furrows' depth limit: once
+    sz = float(zc.max() - zc.min()) if g & {"features", "motifs", "furrows"} else None
     if "height" in g:
         out.update(height_parameters(zc))
     if "spatial" in g:
@@ -232,7 +237,7 @@ def areal_parameters(
         out.update(material_ratio_parameters(zc, p_pct=opt.vm_p_pct, q_pct=opt.vv_q_pct, n_classes=opt.mr_classes))
     hills = None
     if "features" in g or "motifs" in g:
-        t = pruning_threshold(zc, opt.pruning_pct, opt.pruning_reference)
+        t = pruning_threshold(zc, opt.pruning_pct, opt.pruning_reference, sz=sz)
         hills = segment(-zc, t, dx, dy, keep_peaks="features" in g)  # its peaks: the dales' sinks, for S5v
     if "features" in g:
         out.update(
@@ -245,11 +250,12 @@ def areal_parameters(
                 exclude_edge=opt.exclude_edge,
                 spc_half_window=opt.spc_half_window,
                 hills=hills,
+                sz=sz,
             )
         )
     if "furrows" in g:
         out.update(
-            furrow_parameters(zc, dx, dy, window_mm=opt.furrow_window_mm, min_depth_pct=opt.furrow_min_depth_pct)
+            furrow_parameters(zc, dx, dy, window_mm=opt.furrow_window_mm, min_depth_pct=opt.furrow_min_depth_pct, sz=sz)
         )
     if "motifs" in g:
         same = opt.motif_pruning_pct == opt.pruning_pct
@@ -262,6 +268,7 @@ def areal_parameters(
                 pruning_reference=opt.pruning_reference,
                 exclude_edge=opt.exclude_edge,
                 hills=hills if same else None,
+                sz=sz,
             )
         )
     return {k: (float(out[k]), UNITS[k]) for k in UNITS if k in out}

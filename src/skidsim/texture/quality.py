@@ -139,10 +139,11 @@ def plane_slopes(surface: Surface) -> tuple[float, float]:
     x = np.broadcast_to(np.arange(cols) * surface.dx, h.shape)[ok]
     y = np.broadcast_to((np.arange(rows) * surface.dy)[:, None], h.shape)[ok]
     z = h[ok]
-    x = x - x.mean()
-    y = y - y.mean()
-    z = z - z.mean()
-    a = np.array([[x @ x, x @ y], [x @ y, y @ y]])
+    x -= x.mean()  # in place: x, y, z are fresh arrays (boolean indexing copies)
+    y -= y.mean()
+    z -= z.mean()
+    xy = x @ y
+    a = np.array([[x @ x, xy], [xy, y @ y]])
     rhs = np.array([x @ z, y @ z])
     try:
         sx, sy = np.linalg.solve(a, rhs)
@@ -167,7 +168,9 @@ def relief_mm(surface: Surface, slopes: tuple[float, float] | None = None) -> fl
     if np.isfinite(sx) and np.isfinite(sy):
         x = np.arange(h.shape[1]) * surface.dx
         y = np.arange(h.shape[0]) * surface.dy
-        r = (h - sx * x[None, :] - sy * y[:, None])[ok]
+        r = h - sx * x[None, :]
+        r -= sy * y[:, None]  # (h - sx x) - sy y, in place
+        r = r[ok]
     else:
         r = h[ok]
     lo, hi = np.percentile(r, RELIEF_PERCENTILES)

@@ -33,7 +33,7 @@ ndimage = lazy_module("scipy.ndimage")  # imported on first use (skidsim._lazy)
 
 _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 _EIGHT = np.ones((3, 3), dtype=bool)
-_BLOCK_POINTS = 32 * 2448  # points per block of rows in catchment_basins (a few arrays of it fit in cache)
+_BLOCK_POINTS = 8 * 2448  # points per block of rows in catchment_basins (a few arrays of it stay in L1/L2 cache)
 _WHOLE_ROUNDS_ABOVE = 16  # catchment_basins: whole-array doubling rounds while > 1/16 of the points move
 _GATHER_BLOCK = 1 << 16  # entries per gather of a whole doubling round (the indices stay in cache)
 _SADDLE_STRIP_POINTS = 16 * 2448  # points per strip of rows in _saddles
@@ -47,70 +47,88 @@ def _descent(d: np.ndarray, peaks: bool = False):
     ``-d``).
 
     Blocks of rows, each with its own padded copy (NaN outside the grid: never lower, ignored by ``fmin`` and
-    ``fmax``), so that the eight passes over a block stay in cache. Per offset a strict ``<`` against the lowest
-    height so far, the running minimum, and a running maximum of ``(k + 1) * lowered``: the last offset that
-    lowered the minimum is the first that reaches it."""
+    ``fmax``), so that the eight passes over a block stay in cache. Every pass runs on the flat padded block: the
+    points of its rows, and the two padding points between consecutive rows (their results are dropped), are one
+    contiguous run, and each neighbour is the same run shifted by its flat offset (one-dimensional loops, about
+    twice as fast as the strided two-dimensional views). Per offset a strict ``<`` against the lowest height so
+    far, the running minimum, and a running maximum of ``(k + 1) * lowered``: the last offset that lowered the
+    minimum is the first that reaches it. The first offset starts the minimum from the point itself and the code
+    from its comparison."""
     rows, cols = d.shape
     ptr = np.empty(d.size, dtype=np.int32)
     sink = np.empty(d.shape, dtype=bool)
     peak = np.empty(d.shape, dtype=bool) if peaks else None
     delta = np.array([0] + [oy * cols + ox for oy, ox in _OFFSETS], dtype=np.int32)  # code 0: no lower point
     block = max(1, min(rows, _BLOCK_POINTS // max(cols, 1)))
-    pad = np.full((block + 2, cols + 2), np.nan)
-    low = np.empty((block, cols))
-    high = np.empty((block, cols))
-    better = np.empty((block, cols), dtype=bool)
-    code = np.empty((block, cols), dtype=np.int8)
-    tmp = np.empty((block, cols), dtype=np.int8)
+    width = cols + 2  # a padded row
+    pad = np.full((block + 2, width), np.nan)
+    flat_pad = pad.ravel()
+    run = block * width  # flat positions (1, 1) .. (h, cols) of the padded block, and the padding between rows
+    low = np.empty(run)
+    high = np.empty(run)
+    better = np.empty(run, dtype=bool)
+    code = np.empty(run, dtype=np.int8)
+    tmp = np.empty(run, dtype=np.int8)
+    shifts = [width + 1 + oy * width + ox for oy, ox in _OFFSETS]  # flat start of each neighbour's run
     for r0 in range(0, rows, block):
         r1 = min(r0 + block, rows)
         h = r1 - r0
-        pb, lo, hi, be, co, tm = pad[: h + 2], low[:h], high[:h], better[:h], code[:h], tmp[:h]
+        n = h * width - 2  # from the first point of the block to its last
+        lo, hi, be, co, tm = low[:n], high[:n], better[:n], code[:n], tmp[:n]
         # rows r0 - 1 .. r1 of d in rows 0 .. h + 1 of the padded block, NaN outside the grid
-        pb[0, 1:-1] = d[r0 - 1] if r0 > 0 else np.nan
-        pb[1 : h + 1, 1:-1] = d[r0:r1]
-        pb[h + 1, 1:-1] = d[r1] if r1 < rows else np.nan
-        np.copyto(lo, pb[1 : h + 1, 1:-1])
-        co.fill(0)
-        if peaks:
-            hi.fill(-np.inf)
-        for k, (oy, ox) in enumerate(_OFFSETS):
-            nb = pb[1 + oy : 1 + oy + h, 1 + ox : 1 + ox + cols]
+        pad[0, 1:-1] = d[r0 - 1] if r0 > 0 else np.nan
+        pad[1 : h + 1, 1:-1] = d[r0:r1]
+        pad[h + 1, 1:-1] = d[r1] if r1 < rows else np.nan
+        centre = flat_pad[width + 1 : width + 1 + n]
+        for k, s in enumerate(shifts):
+            nb = flat_pad[s : s + n]
+            if k == 0:
+                np.less(nb, centre, out=be)
+                np.fmin(centre, nb, out=lo)
+                np.copyto(co, be.view(np.int8))
+                if peaks:
+                    np.fmax(nb, -np.inf, out=hi)  # -inf where no neighbour (the highest so far)
+                continue
             np.less(nb, lo, out=be)  # strictly lower than the lowest so far: first offset wins ties
             np.fmin(lo, nb, out=lo)
             np.multiply(be.view(np.int8), np.int8(k + 1), out=tm)
             np.maximum(co, tm, out=co)
             if peaks:
                 np.fmax(hi, nb, out=hi)
-        np.equal(co, 0, out=sink[r0:r1])
+        co2 = code[: h * width].reshape(h, width)[:, :cols]  # the points of the block (padding dropped)
+        np.equal(co2, 0, out=sink[r0:r1])
         if peaks:
-            np.less_equal(hi, d[r0:r1], out=peak[r0:r1])
-        out = ptr[r0 * cols : r1 * cols]
-        delta.take(co.ravel(), out=out, mode="clip")
-        out += np.arange(r0 * cols, r1 * cols, dtype=np.int32)
+            np.less_equal(high[: h * width].reshape(h, width)[:, :cols], d[r0:r1], out=peak[r0:r1])
+        out = ptr[r0 * cols : r1 * cols].reshape(h, cols)
+        delta.take(co2, out=out, mode="clip")
+        out += np.arange(r0 * cols, r1 * cols, dtype=np.int32).reshape(h, cols)
     return (ptr, sink, peak) if peaks else (ptr, sink)
 
 
 def _jump_to_roots(ptr: np.ndarray) -> np.ndarray:
     """Pointer doubling on ``ptr`` (int32 flat indices, a forest whose roots point to themselves) until every
     entry is its root; returns the array (``ptr`` is overwritten). Any order of jumps ends at the root, so the
-    result is that of plain doubling. Whole-array rounds (gathers in blocks that stay in cache) while more than
-    1/16 of the entries still move, then only the entries not yet at a root."""
+    result is that of plain doubling. Whole-array rounds (gathers in blocks that stay in cache, each block compared
+    with its old pointers while it is there) while more than 1/16 of the entries still move, then only the entries
+    not yet at a root."""
     n = ptr.size
     nxt = np.empty_like(ptr)
     moving = np.empty(n, dtype=bool)
     step = _GATHER_BLOCK
 
-    def whole_round(src, dst):
+    def whole_round(src, dst, moving) -> int:
+        moved = 0
         for s0 in range(0, n, step):
-            np.take(src, src[s0 : s0 + step], out=dst[s0 : s0 + step], mode="clip")
+            old, new, mv = src[s0 : s0 + step], dst[s0 : s0 + step], moving[s0 : s0 + step]
+            np.take(src, old, out=new, mode="clip")
+            np.not_equal(new, old, out=mv)
+            moved += int(np.count_nonzero(mv))
+        return moved
 
-    whole_round(ptr, nxt)
-    np.not_equal(nxt, ptr, out=moving)
-    while np.count_nonzero(moving) * _WHOLE_ROUNDS_ABOVE > n:
+    moved = whole_round(ptr, nxt, moving)
+    while moved * _WHOLE_ROUNDS_ABOVE > n:
         ptr, nxt = nxt, ptr
-        whole_round(ptr, nxt)
-        np.not_equal(nxt, ptr, out=moving)
+        moved = whole_round(ptr, nxt, moving)
     del nxt
     active = np.flatnonzero(moving)
     del moving
@@ -129,6 +147,35 @@ def _first_sinks(sink_idx: np.ndarray, lab: np.ndarray, n: int) -> np.ndarray:
     return sink_idx[first[1:]]
 
 
+def _sink_labels(sink: np.ndarray) -> tuple[np.ndarray, int, np.ndarray, np.ndarray]:
+    """``ndimage.label(sink, structure=_EIGHT)`` of a boolean mask of sinks and more: ``(markers (int32), n,
+    ascending flat indices of the sink points, flat index of the first point of each label 1..n)``.
+
+    On continuous heights no two sinks touch (every plateau is one point), which four gathers at the sink points
+    tell (the sinks right, below, below right and below left of each): then the components are the points
+    themselves, labelled 1..n in raster order as ``ndimage.label`` numbers them, and each is its own first point;
+    otherwise ``ndimage.label``."""
+    rows, cols = sink.shape
+    flat = sink.ravel()
+    idx = np.flatnonzero(flat)
+    col = idx % cols if idx.size else idx
+    touching = False
+    for off, col_ok in ((1, col < cols - 1), (cols, None), (cols + 1, col < cols - 1), (cols - 1, col > 0)):
+        j = idx + off
+        ok = j < flat.size
+        if col_ok is not None:
+            ok &= col_ok
+        if flat.take(j[ok]).any():
+            touching = True
+            break
+    if touching:
+        markers, n = ndimage.label(sink, structure=_EIGHT)
+        return markers, n, idx, _first_sinks(idx, markers.ravel().take(idx), n)
+    markers = np.zeros(sink.shape, dtype=np.int32)
+    markers.ravel()[idx] = np.arange(1, idx.size + 1, dtype=np.int32)
+    return markers, int(idx.size), idx, idx
+
+
 def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
     """Steepest-descent basins of ``d`` (8-connected). Returns ``(labels 1..n (int32), n, sink flat index of
     each basin (n,))``; the sink of basin k is ``sink[k-1]``."""
@@ -138,8 +185,7 @@ def catchment_basins(d: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
 def _catchment_basins(d: np.ndarray, peaks: bool = False):
     """:func:`catchment_basins` and, with ``peaks``, the points without a strictly higher neighbour (else None)."""
     ptr, sink, *peak = _descent(d, peaks)
-    markers, n = ndimage.label(sink, structure=_EIGHT)
-    sink_idx = np.flatnonzero(sink)
+    markers, n, _, first = _sink_labels(sink)
     del sink
     flat_markers = markers.ravel()
     # every point points to its steepest-descent neighbour, a sink to itself; doubling ends at the sinks
@@ -148,7 +194,7 @@ def _catchment_basins(d: np.ndarray, peaks: bool = False):
     del ptr
     if labels.dtype != np.int32:
         labels = labels.astype(np.int32)
-    return labels, n, _first_sinks(sink_idx, flat_markers.take(sink_idx), n), (peak[0] if peaks else None)
+    return labels, n, first, (peak[0] if peaks else None)
 
 
 def boundary_pairs(labels: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -426,19 +472,29 @@ def segment(
     base = np.full(m, np.inf)
     np.minimum.at(base, ma[diff], sad[diff])
     np.minimum.at(base, mb[diff], sad[diff])
-    # motif of every point (label k -> motif_of_basin[k - 1]); points per motif are exact integer counts
-    pix_motif = np.concatenate((motif_of_basin[:1], motif_of_basin)).take(labels.ravel(), mode="clip")
-    area = np.bincount(pix_motif, minlength=m) * dx * dy
+    # motif of every point (label k -> motif_of_basin[k - 1]), in blocks of points that stay in cache; points per
+    # motif are exact integer counts, and each motif's volume is summed in raster order (``np.add.at`` adds in
+    # index order from 0.0, as ``np.bincount`` with weights does)
+    motif_of_label = np.concatenate((motif_of_basin[:1], motif_of_basin))
+    lf = labels.ravel()
+    step = _GATHER_BLOCK
     lone = ~np.isfinite(base)
     if lone.any():
         mx = np.full(m, -np.inf)
-        np.maximum.at(mx, pix_motif, flat)
+        for s0 in range(0, lf.size, step):
+            np.maximum.at(mx, motif_of_label.take(lf[s0 : s0 + step], mode="clip"), flat[s0 : s0 + step])
         base[lone] = mx[lone]
-    w = base.take(pix_motif, mode="clip")
-    w -= flat
-    np.maximum(w, 0.0, out=w)
-    vol = np.bincount(pix_motif, weights=w, minlength=m) * dx * dy
-    del w, pix_motif
+    count = np.zeros(m, dtype=np.intp)
+    vol = np.zeros(m)
+    for s0 in range(0, lf.size, step):
+        pm = motif_of_label.take(lf[s0 : s0 + step], mode="clip")
+        np.add.at(count, pm, 1)
+        w = base.take(pm, mode="clip")
+        w -= flat[s0 : s0 + step]
+        np.maximum(w, 0.0, out=w)
+        np.add.at(vol, pm, w)
+    area = count * dx * dy
+    vol = vol * dx * dy
     border = np.unique(np.concatenate([labels[0, :], labels[-1, :], labels[:, 0], labels[:, -1]]))
     edge = np.zeros(m, dtype=bool)
     edge[motif_of_basin[border - 1]] = True
@@ -465,9 +521,8 @@ def _sink_plateaus(d: np.ndarray, sink: np.ndarray | None = None) -> tuple[np.nd
     without a strictly lower 8-neighbour: the minimum of its neighbours is not below it. ``sink``: that mask when
     it is known (the peaks of ``-d`` from :func:`segment`)."""
     if sink is not None:
-        markers, n = ndimage.label(sink, structure=_EIGHT)
-        sink_idx = np.flatnonzero(sink)
-        return markers, n, _first_sinks(sink_idx, markers.ravel().take(sink_idx), n)
+        markers, n, _, first = _sink_labels(sink)
+        return markers, n, first
     rows, cols = d.shape
     sink = np.empty(d.shape, dtype=bool)
     block = max(1, min(rows, _BLOCK_POINTS // max(cols, 1)))
@@ -484,9 +539,8 @@ def _sink_plateaus(d: np.ndarray, sink: np.ndarray | None = None) -> tuple[np.nd
         for oy, ox in _OFFSETS:
             np.minimum(lo, pb[1 + oy : 1 + oy + h, 1 + ox : 1 + ox + cols], out=lo)
         np.greater_equal(lo, d[r0:r1], out=sink[r0:r1])
-    markers, n = ndimage.label(sink, structure=_EIGHT)
-    sink_idx = np.flatnonzero(sink)
-    return markers, n, _first_sinks(sink_idx, markers.ravel().take(sink_idx), n)
+    markers, n, _, first = _sink_labels(sink)
+    return markers, n, first
 
 
 def deepest_motifs(

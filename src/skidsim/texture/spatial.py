@@ -46,23 +46,48 @@ class SpatialResult:
     decay_mm: np.ndarray
 
 
+_FFT_ROWS = 64  # rows of the zero-padded heights transformed along x at a time (the chunk stays in cache)
+
+
+def _padded_spectrum(z: np.ndarray, workers: int, shape: tuple[int, int]) -> np.ndarray:
+    """``scipy.fft.rfft2`` of the mean-subtracted heights zero-padded to ``shape``, bit for bit, without the padding
+    rows: pocketfft's ``rfft2`` is the real transform along x of every row, then the complex transform along y of
+    every column (in place). The rows of the padding transform to zeros, so only the ``rows`` rows of heights are
+    transformed along x, ``_FFT_ROWS`` at a time (each row's transform is the same whatever rows share the call),
+    each chunk padded in a small buffer; the padding rows of the result are set to zero, then the y transform runs
+    on the whole array."""
+    rows, cols = z.shape
+    spec = np.empty((shape[0], shape[1] // 2 + 1), dtype=complex)
+    spec[rows:] = 0.0
+    mean = z.mean()
+    buf = np.zeros((min(rows, _FFT_ROWS), shape[1]))  # its columns from cols on stay zero (the padding)
+    for r0 in range(0, rows, _FFT_ROWS):
+        r1 = min(r0 + _FFT_ROWS, rows)
+        b = buf[: r1 - r0]
+        np.subtract(z[r0:r1], mean, out=b[:, :cols])
+        spec[r0:r1] = sfft.rfft(b, axis=1, workers=workers)
+    return sfft.fft(spec, axis=0, workers=workers, overwrite_x=True)
+
+
 def _padded_power(z: np.ndarray, workers: int, max_lag_fraction: float):
-    """|F|^2 of the zero-padded rfft2 of the mean-subtracted heights, the padded shape and the lag limits
-    ``(Ly, Lx)`` (see :func:`autocorrelation`)."""
+    """|F|^2 of the zero-padded rfft2 of the mean-subtracted heights, the same values as a complex array (imaginary
+    parts zero; the input of :class:`_AcfRows`, which overwrites it), the padded shape and the lag limits
+    ``(Ly, Lx)`` (see :func:`autocorrelation`). ``|F|^2 = re^2 + im^2`` (each square rounded, then the sum) is
+    formed in chunks of rows in the spectrum's own array and written back into it."""
     rows, cols = z.shape
     ly = int(np.floor(max_lag_fraction * (rows - 1)))
     lx = int(np.floor(max_lag_fraction * (cols - 1)))
     shape = (sfft.next_fast_len(rows + ly, real=True), sfft.next_fast_len(cols + lx, real=True))
-    # the mean-subtracted heights written straight into the zero padding (what rfft2(c, s=shape) pads to)
-    c = np.empty(shape)
-    c[:rows, cols:] = 0.0
-    c[rows:] = 0.0
-    np.subtract(z, z.mean(), out=c[:rows, :cols])
-    spec = sfft.rfft2(c, workers=workers)
-    del c
-    power = np.square(spec.real)
-    power += np.square(spec.imag)
-    return power, shape, ly, lx
+    spec = _padded_spectrum(z, workers, shape)
+    power = np.empty(spec.shape)
+    for r0 in range(0, spec.shape[0], _FFT_ROWS):
+        r1 = min(r0 + _FFT_ROWS, spec.shape[0])
+        p, sp = power[r0:r1], spec[r0:r1]
+        parts = sp.view(np.float64)  # re, im, re, im, ... of each row
+        np.square(parts, out=parts)
+        np.add(parts[:, 0::2], parts[:, 1::2], out=p)
+        np.copyto(sp, p)  # real part p, imaginary part 0
+    return power, spec, shape, ly, lx
 
 
 class _AcfRows:
@@ -74,9 +99,10 @@ class _AcfRows:
     transforms on the same data and the same scale factor applied to their output (tested).
     """
 
-    def __init__(self, power: np.ndarray, shape, rows: int, cols: int, ly: int, lx: int, workers: int = 1):
-        # complex input, as irfft2 converts it (a real input would take pocketfft's symmetric path: other roundings)
-        self.half = sfft.ifft(power.astype(complex), axis=0, norm="forward", workers=workers, overwrite_x=True)
+    def __init__(self, cpower: np.ndarray, shape, rows: int, cols: int, ly: int, lx: int, workers: int = 1):
+        # the power as a complex array (irfft2 converts its input so; a real input would take pocketfft's
+        # symmetric path: other roundings), from _padded_power; overwritten
+        self.half = sfft.ifft(cpower, axis=0, norm="forward", workers=workers, overwrite_x=True)
         self.shape, self.rows, self.cols, self.ly, self.lx, self.workers = tuple(shape), rows, cols, ly, lx, workers
         # irfft2's scale factor 1 / (ny nx), computed as pocketfft does (long double, rounded once)
         self.fct = np.float64(1 / np.longdouble(self.shape[0] * self.shape[1]))
@@ -105,8 +131,8 @@ def autocorrelation(z: np.ndarray, workers: int = 1, return_spectrum: bool = Fal
     shape.
     """
     rows, cols = z.shape
-    power, shape, ly, lx = _padded_power(z, workers, max_lag_fraction)
-    acf = _AcfRows(power, shape, rows, cols, ly, lx, workers)(ly)
+    power, cpower, shape, ly, lx = _padded_power(z, workers, max_lag_fraction)
+    acf = _AcfRows(cpower, shape, rows, cols, ly, lx, workers)(ly)
     if return_spectrum:
         return acf, power, shape
     return acf
@@ -231,10 +257,11 @@ def spatial_parameters(
     if on_border not in ("nan", "bound"):
         raise ValueError(f"on_border must be 'nan' or 'bound', got {on_border!r}")
     rows, cols = z.shape
-    power, shape, ly, lx = _padded_power(z, workers, max_lag_fraction)
+    power, cpower, shape, ly, lx = _padded_power(z, workers, max_lag_fraction)
     std = texture_direction(power, shape, dx, dy, std_step_deg)
-    acf_rows = _AcfRows(power, shape, rows, cols, ly, lx, workers)
     del power
+    acf_rows = _AcfRows(cpower, shape, rows, cols, ly, lx, workers)
+    del cpower
     # Only the rows of the ACF around the region above s are needed (decay_lengths' crop). Rows |ky| <= k are
     # computed for a growing k until that region (with the crop's margin) ends inside them; then the region,
     # the crop and every decay length are those of the whole ACF (a 4-connected region that does not reach the
