@@ -119,6 +119,7 @@ def test_a_texture_model_that_misses_a_curvature_in_mpd_is_named_and_its_extensi
     figs = diagnosis_figures(r, tmp_path)
     report = Path(cr.write_outputs(tmp_path, r.residuals, r.causes, r.gain, figs)["report"]).read_text()
     assert "= the texture model: friction is a nonlinear function of mpd_mm" in report
+    assert top.category == "texture model" and "a cause of the kind *texture model*" in report
     # within a site the texture model does not enter: nothing changes at held-out speeds
     within = r.gain["scopes"]["held_out_speeds"]
     assert within["rmse_after"] == pytest.approx(within["rmse_before"], abs=1e-12)
@@ -177,6 +178,32 @@ def _cause(variable, share, *, sig=True, kind="main", section_level=True, sectio
         section_share_main=share,
         section_id=section_id,
     )
+
+
+def test_the_category_says_what_kind_of_cause_an_entry_is():
+    """``Cause.category``: every branch of the mapping; a texture parameter is the texture model's misfit with
+    its label (between sites), the MPD column x speed within sites is drainage (primary family), other texture
+    tests within sites are texture parameters."""
+    texture = replace(_cause("micro_Sdq", 0.6, section_level=False, source="texture"), label="", level="within-site")
+    cases = [
+        (replace(texture, label="the texture model misses how micro_Sdq changes the friction level"), "texture model"),
+        (replace(texture, variable="profile_MPD", kind="x_speed", family="primary"), "drainage"),
+        (replace(texture, kind="x_speed", family="secondary"), "texture parameter"),
+        (replace(_cause("texture_model[curved in x]", 0.6, source="texture_model")), "texture model"),
+        (texture, "texture parameter"),
+        (replace(_cause("section", 0.9, section_id=True), label=cr.SECTION_UNEXPLAINED), "section (unexplained)"),
+        (replace(_cause("section", 0.9, section_id=True), label=cr.TEXTURE_MISFIT), "texture model"),
+        (_cause("section", 0.9, section_id=True), "section"),
+        (_cause("temperature_c", 0.6, section_level=False), "temperature"),
+        (_cause("aadt", 0.6), "sites.csv column"),
+        (replace(_cause("aggregate", 0.6), dtype="categorical"), "sites.csv column"),
+        (
+            replace(_cause("functional_form", 0.0, section_level=False, source="residual"), kind="functional_form"),
+            "functional form",
+        ),
+    ]
+    for c, want in cases:
+        assert c.category == want and c.category in cr.CATEGORIES, (c.variable, c.label, c.category)
 
 
 def test_section_rule_names_a_column_only_when_it_explains_most_of_the_section_effect():
@@ -278,6 +305,7 @@ def test_a_temperature_effect_on_spectral_texture_is_named_temperature_not_secti
     causes = cr.screen_candidates(res, t["sites"], t["texture"], opts, texture_pc_scores=pcs, texture_lead=lead)
     top = cr.named_cause(causes)
     assert top is not None and top.variable == "temperature_c", [(c.variable, c.label) for c in causes[:3]]
+    assert top.category == "temperature"
     sec = next(c for c in causes if c.section_id and c.significant and c.kind == "main")
     assert 0.5 <= top.section_share_main < 1.0 and sec.label == ""
 
@@ -302,7 +330,7 @@ def test_a_section_level_column_with_an_effect_is_named():
     causes = _screen(campaign(8, "aadt"), seed=8)
     top = cr.named_cause(causes)
     assert top is not None and (top.variable, top.kind, top.section_id) == ("aadt", "main", False), causes[:3]
-    assert top.section_share >= 0.5 and top.direction == -1
+    assert top.section_share >= 0.5 and top.direction == -1 and top.category == "sites.csv column"
 
 
 def test_a_texture_x_speed_effect_ranks_above_section_and_metadata():
@@ -313,6 +341,7 @@ def test_a_texture_x_speed_effect_ranks_above_section_and_metadata():
     top = cr.named_cause(causes)
     assert top is not None and top.kind == "x_speed" and "micro_Sdq" in (top.variable,) + top.group, causes[:3]
     assert top.label == f"the texture model misses how {top.variable} changes the speed shape of friction"
+    assert top.category == "texture model" and top.as_dict()["category"] == "texture model"
     assert top.section_share >= 0.5
     sec = next(c for c in causes if c.variable == "section" and c.level == "between-site" and c.kind == "x_speed")
     assert causes.index(sec) > 0

@@ -196,6 +196,11 @@ def test_texture_clusters_and_families():
     }
     tm = [c for c in causes if c.source == "texture_model"]
     assert len({c.unit for c in tm}) == 1 and len({c.unit_p for c in tm}) == 1
+    # the MPD column x speed: drainage within sites; between sites the IFI speed constant the texture model misses
+    mpd = {c.level: c for c in causes if c.variable == "mpd_mm" and c.kind == "x_speed"}
+    assert mpd["within-site"].label == "" and mpd["within-site"].category == "drainage"
+    assert mpd["between-site"].label.startswith("the texture model misses how mpd_mm changes the speed shape")
+    assert "IFI speed constant" in mpd["between-site"].label and mpd["between-site"].category == "texture model"
     # a cluster is one unit: its members share the unit, its max-statistic p-value, and p_adjusted >= unit_p
     mac = [c for c in causes if c.variable in macro and c.level == "between-site" and c.kind == "main"]
     rep = max(mac, key=lambda c: c.statistic)

@@ -160,11 +160,14 @@ def test_piarc_sp_recovered_from_a_noise_free_trace():
 def test_rado_parameters_recovered_from_a_noise_free_trace():
     for s in _noise_free("spectral"):
         v, mu = s.dft["speed_kmh"].to_numpy(), s.dft["mu"].to_numpy()
-        L = np.log(v)
-        c2, c1, c0 = np.polyfit(L, np.log(mu), 2)  # ln mu = ln mu_p - (L - ln v_p)^2 / C^2
+        t = s.truth["parameters"]
+        model = friction_models.evaluate("rado", t, v)
+        below = model <= friction_models.MU_SATURATION_START  # above it the low-speed end is saturated (next test)
+        np.testing.assert_allclose(mu, friction_models.saturate(model), atol=6e-4)
+        L = np.log(v[below])
+        c2, c1, c0 = np.polyfit(L, np.log(mu[below]), 2)  # ln mu = ln mu_p - (L - ln v_p)^2 / C^2
         C = np.sqrt(-1.0 / c2)
         v_peak = np.exp(c1 * C**2 / 2)
-        t = s.truth["parameters"]
         assert C == pytest.approx(t["c"], rel=0.01)
         assert v_peak == pytest.approx(t["v_peak_kmh"], rel=0.05)
         assert 1.0 <= t["v_peak_kmh"] <= 4.0 < v.min()  # the peak lies below the trace: mu falls over it
@@ -173,6 +176,32 @@ def test_rado_parameters_recovered_from_a_noise_free_trace():
             friction_models.mu_rado(39.5, t["mu_peak"], t["v_peak_kmh"], t["c"])
         )
         assert slope == pytest.approx(-1.0 / t["sp_kmh"], rel=1e-3)
+
+
+def test_saturation_keeps_plausible_friction_and_bends_the_rest_below_the_ceiling():
+    """``saturate``: the same floats up to mu 1.0, then continuous with slope 1, increasing and below 1.3 (checked
+    against the closed form and by finite differences); a Rado site of high level on shallow texture, whose model
+    reaches mu 1.75 at the end of a spin-down, gives a true curve within the DFT reader's range (0, 1.5) that equals
+    the model wherever the model is at most 1.0."""
+    m0, top = friction_models.MU_SATURATION_START, friction_models.MU_CEILING
+    mu = np.linspace(0.05, 3.0, 2951)
+    out = friction_models.saturate(mu)
+    low = mu <= m0
+    np.testing.assert_array_equal(out[low], mu[low])
+    assert np.all(out[~low] < top) and np.all(out[~low] > m0) and np.all(np.diff(out) > 0)
+    w = top - m0
+    np.testing.assert_allclose(out[~low], m0 + w * np.tanh((mu[~low] - m0) / w), rtol=1e-15)
+    eps = 1e-7  # slope 1 on both sides of m0
+    assert (friction_models.saturate(m0 + eps) - m0) / eps == pytest.approx(1.0, abs=1e-6)
+    assert friction_models.saturate(10.0) == pytest.approx(top, abs=1e-12)
+    params = friction_models.model_parameters("rado", 0.85, 0.3, v_peak_kmh=2.0)  # Sp 41 km/h, C 2.48
+    v = np.linspace(85.0, 5.0, 161)
+    model = friction_models.evaluate("rado", params, v)
+    assert model.max() > 1.7  # the unsaturated model at 5 km/h (mu_peak 2.0 at v_peak 2 km/h)
+    fr = {"friction_model": "rado", "parameters": params, "hidden": {"effect": None}}
+    true = generators.site_mu(fr, v)
+    assert 1.2 < true.max() < top < 1.5
+    np.testing.assert_array_equal(true[model <= m0], model[model <= m0])
 
 
 def test_penn_state_png_recovered_from_a_noise_free_trace():

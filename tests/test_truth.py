@@ -165,6 +165,27 @@ def test_metadata_and_section_effects():
         T.site_truth(DESC, ROW, {"effects": {"bogus": {}}})
 
 
+def test_a_low_speed_section_effect_is_the_offset_times_its_speed_ramp():
+    """``speed_shape: low_speed``: a polished aggregate's sections lose the offset in full up to 20 km/h, half at
+    40 km/h and nothing from 60 km/h (closed form); other sections and the level shape are unchanged; bad shapes and
+    speed pairs are refused naming the key."""
+    sec = {"column": "mix", "offsets": {"WMA": -0.12}, "speed_shape": "low_speed"}
+    cfg = cfg_with(section=sec)
+    plain = T.site_truth(DESC, ROW, cfg)
+    wma = T.site_truth(DESC, ROW | {"mix": "WMA"}, cfg)
+    v = np.array([5.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0])
+    ramp = np.array([1.0, 1.0, 0.75, 0.5, 0.25, 0.0, 0.0])
+    np.testing.assert_allclose(T.mu_true(v, wma) - T.mu_true(v, plain), -0.12 * ramp, atol=1e-12)
+    np.testing.assert_allclose(T.contributions(v, wma)["section"], -0.12 * ramp, atol=1e-12)
+    assert wma["effects"]["section"]["speed_shape"] == "low_speed"
+    level = T.site_truth(DESC, ROW | {"mix": "WMA"}, cfg_with(section={**sec, "speed_shape": "level"}))
+    np.testing.assert_array_equal(T.mu_true(v, level), T.mu_true(v, plain) - 0.12)
+    with pytest.raises(ConfigError, match="section.speed_shape"):
+        T.check_truth_config({"effects": {"section": {"speed_shape": "high_speed"}}})
+    with pytest.raises(ConfigError, match="section.low_speed_kmh"):
+        T.check_truth_config({"effects": {"section": {"low_speed_kmh": [60, 20]}}})
+
+
 def test_contributions_add_up_and_truth_reproducible():
     cfg = T.default_truth_config()
     cfg["effects"]["metadata"]["enabled"] = True

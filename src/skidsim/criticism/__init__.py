@@ -29,6 +29,7 @@ import pandas as pd
 
 from .adjustment import added_variable, texture_model_scores
 from .causes import (
+    CATEGORIES,
     SECTION_SHARE_MIN,
     SECTION_UNEXPLAINED,
     TEXTURE_MISFIT,
@@ -84,6 +85,7 @@ __all__ = [
     "is_texture_model",
     "section_rule",
     "SECTION_SHARE_MIN",
+    "CATEGORIES",
     "SECTION_UNEXPLAINED",
     "TEXTURE_MISFIT",
     "LEVELS",

@@ -17,6 +17,17 @@ SECTION_SHARE_MIN = 0.5
 SECTION_UNEXPLAINED = "section (unexplained)"
 #: Label of a between-site section effect that the measured curves do not show beyond a quadratic texture model in
 #: the prediction model's terms (rule 6 of :func:`section_rule`).
+#: The kinds of cause :attr:`Cause.category` names.
+CATEGORIES = (
+    "texture model",
+    "drainage",
+    "texture parameter",
+    "section (unexplained)",
+    "section",
+    "temperature",
+    "sites.csv column",
+    "functional form",
+)
 TEXTURE_MISFIT = "the texture model's misfit (no section effect in the measured curves beyond its quadratic form)"
 #: Sources of the texture explanations of a section effect (texture parameters, the texture-model candidate).
 TEXTURE_SOURCES = ("texture", "texture_model")
@@ -92,9 +103,33 @@ class Cause:
     section_rest_p: float = float("nan")
     explains: str = ""
 
+    @property
+    def category(self) -> str:
+        """What kind of cause this is, in one of :data:`CATEGORIES` (``category`` in causes.json and gain.json):
+        ``texture model`` for a texture-model candidate, a texture parameter between sites (labelled as the texture
+        model's misfit; the MPD column x speed between sites as the IFI speed constant the texture model misses)
+        and section identity labelled ``TEXTURE_MISFIT``; ``drainage`` for the MPD column x speed within sites
+        (the only texture test of the primary family there); ``texture parameter`` for the other texture tests
+        within sites; ``section (unexplained)`` and ``section`` for section identity (the latter explained by a
+        column); ``temperature`` for a temperature column of sites.csv
+        (:func:`skidsim.criticism.covariates.temperature_columns`); ``sites.csv column`` for any other sites.csv
+        column; ``functional form`` for the shape of the friction law."""
+        if self.source == "texture_model" or self.label.startswith("the texture model") or self.label == TEXTURE_MISFIT:
+            return "texture model"
+        if self.section_id:
+            return SECTION_UNEXPLAINED if self.label == SECTION_UNEXPLAINED else "section"
+        if self.source == "texture":
+            return "drainage" if (self.family == "primary" and self.kind == "x_speed") else "texture parameter"
+        if self.variable == "functional_form":
+            return "functional form"
+        if self.dtype == "numeric" and "temp" in self.variable.lower():
+            return "temperature"
+        return "sites.csv column"
+
     def as_dict(self) -> dict:
         d = asdict(self)
         d["group"] = list(self.group)
+        d["category"] = self.category
         return d
 
 
@@ -110,13 +145,17 @@ def _group(variable: str, candidates, corr: pd.DataFrame, corr_group: float) -> 
 
 def _label(t, mpd: str | None) -> str:
     """What the report names for a test: the texture model in words for a texture-model candidate, and for a
-    texture parameter between sites (not the MPD x speed drainage hypothesis) the texture model's misfit it shows;
-    section identity is labelled by :func:`section_rule`; else empty (the variable itself)."""
+    texture parameter between sites the texture model's misfit it shows (for the MPD column x speed: the IFI speed
+    constant, drainage through the macrotexture, which the texture model's per-speed terms do not follow); section
+    identity is labelled by :func:`section_rule`; else empty (the variable itself)."""
     if t.source == "texture_model":
         return f"the texture model: {t.words}"
-    if t.source == "texture" and t.level == "between-site" and not (t.variable == mpd and t.kind == "x_speed"):
+    if t.source == "texture" and t.level == "between-site":
         what = "friction level" if t.kind == "main" else "speed shape of friction"
-        return f"the texture model misses how {t.variable} changes the {what}"
+        ifi = " (the IFI speed constant Sp = 14.2 + 89.7 MPD: drainage through the macrotexture)"
+        return f"the texture model misses how {t.variable} changes the {what}" + (
+            ifi if (t.variable == mpd and t.kind == "x_speed") else ""
+        )
     return ""
 
 

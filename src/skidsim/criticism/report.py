@@ -86,7 +86,9 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
     grp = _fmt_group(top["group"]) or "-"
     label = f" = {top['label']}" if top.get("label") else ""
     lines = [
-        f"**Named cause: `{top['variable']}`{label}** ({top['level']}, {top['kind']}); correlated group: {grp}; "
+        f"**Named cause: `{top['variable']}`{label}** ({top['level']}, {top['kind']}"
+        + (f"; a cause of the kind *{top['category']}*" if top.get("category") else "")
+        + f"); correlated group: {grp}; "
         f"effect {top['effect']:.4f} mu, cv gain {top['cv_gain']:.3f}, p = {top['p_value']:.2g}, "
         f"p_adj = {top['p_adjusted']:.2g}"
         + (f"; tested beyond the texture ({_conditioned_on(top, gain)})" if top.get("texture_pcs", -1) >= 0 else "")

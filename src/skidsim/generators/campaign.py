@@ -260,15 +260,16 @@ def _site_friction(rng: np.random.Generator, row, meas: dict, f: dict, extra: di
 
 def site_mu(fr: dict, v_kmh) -> np.ndarray:
     """The true friction of a site at ``v_kmh`` (km/h): its model (``fr`` as :func:`generate_site` records it in
-    the truth) times the hidden effect's factor (:func:`friction_models.hidden_factor`; 1 without one)."""
+    the truth) times the hidden effect's factor (:func:`friction_models.hidden_factor`; 1 without one), saturated
+    above mu 1.0 (:func:`friction_models.saturate`: only the lowest speeds of the rough sites reach it)."""
     mu = friction_models.evaluate(fr["friction_model"], fr["parameters"], v_kmh)
     h = fr.get("hidden") or {}
-    if h.get("effect") is None:
-        return mu
-    keys = ("macro_sdq", "micro_contact_mm", "micro_sq_mm", "sq_ref_mm")
-    return mu * friction_models.hidden_factor(
-        h["effect"], h["kappa"], h["sp_kmh"], v_kmh, **{k: h[k] for k in keys if k in h}
-    )
+    if h.get("effect") is not None:
+        keys = ("macro_sdq", "micro_contact_mm", "micro_sq_mm", "sq_ref_mm")
+        mu = mu * friction_models.hidden_factor(
+            h["effect"], h["kappa"], h["sp_kmh"], v_kmh, **{k: h[k] for k in keys if k in h}
+        )
+    return friction_models.saturate(mu)
 
 
 def _trace(rng: np.random.Generator, fr: dict, c: dict) -> pd.DataFrame:

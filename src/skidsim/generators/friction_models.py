@@ -15,6 +15,10 @@ km/h; friction coefficients are dimensionless.
 * Low-speed level from microtexture: wet friction needs microtexture to break the water film and grows with it
   towards a plateau (Kummer 1966; Forster 1989). Form used here: ``mu20 = 0.30 + 0.55 (1 - exp(-Sq_micro /
   sq_ref_mm))``, coefficients ours, chosen so that DFT20 spans the typical wet-asphalt range 0.35-0.85.
+* Low-speed saturation (:func:`saturate`, ours): the forms above, extrapolated from their slope over 20-60 km/h
+  to the end of a spin-down (5 km/h), reach mu 1.3-1.8 on rough, shallow textures (Rado with a peak at 1-4 km/h:
+  ``mu_peak`` up to 1.8 ``mu20``), where wet DFT traces stay near or below about 1.2. A site's true friction is
+  therefore left as it is up to ``MU_SATURATION_START`` and bent smoothly towards ``MU_CEILING`` above it.
 """
 
 from __future__ import annotations
@@ -33,6 +37,24 @@ HIDDEN_MEASURES = {"hysteresis": "macro_sdq", "contact_micro": "micro_contact_mm
 #: 0.2 mm spacing) and the speed over which the factor grows by ``kappa (Sdq - SDQ_REF)`` (km/h, from 20 km/h).
 SDQ_REF = 0.5
 HYSTERESIS_SPAN_KMH = 50.0
+#: :func:`saturate`: friction up to this value is returned unchanged (dimensionless) ...
+MU_SATURATION_START = 1.0
+#: ... and above it approaches this ceiling (dimensionless; below the DFT reader's plausible range, mu < 1.5).
+MU_CEILING = 1.3
+
+
+def saturate(mu) -> np.ndarray:
+    """Friction ``mu`` (dimensionless) with its implausible low-speed excess bent towards :data:`MU_CEILING`:
+    ``mu`` where ``mu <= m0`` (the same floats), ``m0 + w tanh((mu - m0) / w)`` above it, ``m0`` =
+    :data:`MU_SATURATION_START`, ``w = MU_CEILING - m0``: continuous with slope 1 at ``m0``, increasing, below
+    ``MU_CEILING``. On the generators' campaigns it acts only below about 18 km/h (module docstring)."""
+    mu = np.asarray(mu, float)
+    w = MU_CEILING - MU_SATURATION_START
+    over = mu > MU_SATURATION_START
+    if not over.any():
+        return mu
+    bent = MU_SATURATION_START + w * np.tanh((mu - MU_SATURATION_START) / w)
+    return np.where(over, bent, mu)
 
 
 def ifi_speed_constant_kmh(mpd_mm: float) -> float:

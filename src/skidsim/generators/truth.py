@@ -14,7 +14,9 @@ fixed order (each step's contribution is recorded separately)::
                      or * max(floor, 1 - k_d * (v^2 - v_ref^2) / Sp^2)         (form "squeeze": partial
                      hydroplaning, the water wedge's load share grows with the dynamic pressure ~ v^2)
     metadata       : * (1 + size * (x - x_ref))                             (e.g. slider wear by test_order)
-    section        : + offset[section or mix]                                (unexplained level shift)
+    section        : + offset[section or mix] * shape(v)                     (unexplained level shift; shape 1, or
+                     "low_speed": clip((v_hi - v) / (v_hi - v_lo), 0, 1), a polished aggregate that loses
+                     low-speed friction only: a categorical x speed effect)
 
 with the base parameters computed from the generated surface itself (descriptors of this module):
 
@@ -77,7 +79,13 @@ TRUTH_DEFAULTS: dict = {
             "floor": 0.05,
         },
         "metadata": {"enabled": False, "column": "test_order", "size": -0.004, "reference": 1.0},
-        "section": {"enabled": False, "column": "section", "offsets": {"E6": 0.05}},
+        "section": {
+            "enabled": False,
+            "column": "section",
+            "offsets": {"E6": 0.05},
+            "speed_shape": "level",  # or "low_speed" (SECTION_SHAPES)
+            "low_speed_kmh": [20.0, 60.0],  # low_speed: the whole offset up to the first speed, none from the second
+        },
     },
 }
 
@@ -85,6 +93,9 @@ EFFECT_ORDER = ("temperature", "drainage", "metadata", "section")
 #: Drainage forms: "ifi" (exponential in speed, inside what the study's law can absorb over 20-70 km/h) and
 #: "squeeze" (quadratic loss, concave in speed; docs/synthetic-campaign.md).
 DRAINAGE_FORMS = ("ifi", "squeeze")
+#: Speed shapes of the section effect: "level" (the offset at every speed) and "low_speed" (the offset in full up
+#: to ``low_speed_kmh[0]``, falling linearly to nothing at ``low_speed_kmh[1]``; :func:`section_shape`).
+SECTION_SHAPES = ("level", "low_speed")
 REPORT_SPEEDS_KMH = (5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0)
 
 
@@ -202,6 +213,21 @@ def check_truth_config(cfg: dict) -> dict:
     form = out["effects"]["drainage"]["form"]
     if form not in DRAINAGE_FORMS:
         raise ConfigError(f"truth.effects.drainage.form: expected one of {list(DRAINAGE_FORMS)}, got {form!r}")
+    sec = out["effects"]["section"]
+    if sec["speed_shape"] not in SECTION_SHAPES:
+        raise ConfigError(
+            f"truth.effects.section.speed_shape: expected one of {list(SECTION_SHAPES)}, got {sec['speed_shape']!r}"
+        )
+    lo_hi = sec["low_speed_kmh"]
+    try:
+        lo, hi = (float(x) for x in lo_hi)
+        ok = 0.0 <= lo < hi
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ConfigError(
+            f"truth.effects.section.low_speed_kmh: expected two speeds in km/h, 0 <= first < second, got {lo_hi!r}"
+        )
     return out
 
 
@@ -298,6 +324,8 @@ def site_truth(descriptors: dict, row: dict, truth_cfg: dict | None = None) -> d
         "column": s["column"],
         "value": key,
         "offset_mu": offset,
+        "speed_shape": str(s["speed_shape"]),
+        "low_speed_kmh": [float(x) for x in s["low_speed_kmh"]],
         "config": s,
     }
     truth = {"model": "skidsim.generators.truth/1", "descriptors": dict(descriptors), "base": base, "effects": effects}
@@ -328,10 +356,20 @@ def mu_steps(speed_kmh, truth: dict) -> dict:
         cur = cur * e["metadata"]["factor"]
     out["metadata"] = cur
     if e["section"]["enabled"]:
-        cur = cur + e["section"]["offset_mu"]
+        cur = cur + e["section"]["offset_mu"] * section_shape(v, e["section"])
     out["section"] = cur
     out["total"] = cur
     return out
+
+
+def section_shape(speed_kmh, section: dict):
+    """The share (dimensionless) of the section offset at DFT speed(s) in km/h: 1.0 for the ``level`` shape (a
+    truth recorded before the shape existed has none), ``clip((v_hi - v) / (v_hi - v_lo), 0, 1)`` for
+    ``low_speed`` with ``(v_lo, v_hi)`` = ``low_speed_kmh``."""
+    if section.get("speed_shape", "level") == "level":
+        return 1.0
+    lo, hi = (float(x) for x in section["low_speed_kmh"])
+    return np.clip((hi - np.asarray(speed_kmh, dtype=float)) / (hi - lo), 0.0, 1.0)
 
 
 def drainage_factor(speed_kmh, drainage: dict) -> np.ndarray:
