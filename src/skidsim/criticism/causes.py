@@ -314,8 +314,13 @@ def refinement_descriptions(
             if C.section_share > best_share:
                 best, best_share = C, C.section_share
         if best is not None:
-            out[_pos(out, best)] = replace(best, significant=True, explains=f"{F.variable} ({F.level}, {F.kind})")
+            out[_pos(out, best)] = replace(best, significant=True, explains=_test_name(F))
     return out
+
+
+def _test_name(c: Cause) -> str:
+    """``<variable> (<level>, <kind>)``: how ``explains`` names the test a cause is named for (rule 3c)."""
+    return f"{c.variable} ({c.level}, {c.kind})"
 
 
 def _descriptions_at_their_groupings(causes: list[Cause]) -> None:
@@ -323,7 +328,7 @@ def _descriptions_at_their_groupings(causes: list[Cause]) -> None:
     describes: it moves right above it, whatever its own cv_msr (it renames that grouping's evidence, no more). In
     place."""
     for C in [c for c in causes if c.explains and not c.explains.startswith("section (")]:
-        F = next((f for f in causes if f"{f.variable} ({f.level}, {f.kind})" == C.explains and f.significant), None)
+        F = next((f for f in causes if _test_name(f) == C.explains and f.significant), None)
         if F is not None:
             _move(causes, C, _pos(causes, F) if _pos(causes, C) > _pos(causes, F) else _pos(causes, F) - 1)
 
