@@ -15,6 +15,12 @@ test asks, on every machine, SN and the scalars within 1e-12 relative of both re
 counts, the energies within 1e-11 of the external work and the traces within 1e-9 relative (the issue's bound);
 and, where the machine reproduces a reference's scalars bit for bit (a machine of that reference's class), the
 energies and every trace column bit for bit too (``==``). Both classes were checked on their machine: bit for bit.
+One column is reduced by BLAS (:data:`BLAS_COLUMNS`: ``np.dot`` in a single run's trace row), whose kernel OpenBLAS
+chooses by the CPU on its own: an AMD EPYC whose NumPy dispatch finds AVX512_ICL but not AVX512_SPR reproduces the
+AVX-512 reference's scalars bit for bit with OpenBLAS's Haswell kernels, and its slip speeds differ from the
+reference's by one or two ulp in some rows (3e-16 relative, measured 2026-11-30), its energies (dot products too) in
+the last bits. There that column is asked within 2e-15 relative and the energies within 1e-11 of the external work
+(as on any machine); on a machine whose NumPy finds AVX512_SPR (the reference's) both bit for bit.
 The batched kernel (:func:`skidsim.solver.simulate_batch`) must give each member the SN, the state and the trace of
 its single run bit for bit (the issue asks 1e-9 relative), also when the members finish their preload and their
 slide at different steps; only the diagnostic per-member means (:data:`DIAGNOSTIC_COLUMNS`, ``np.bincount`` in a
@@ -41,6 +47,15 @@ REF = Path(__file__).parent / "data" / "solver_reference_coarse.npz"
 REF_AVX512 = Path(__file__).parent / "data" / "solver_reference_coarse_avx512.npz"
 #: per-member means of the contact nodes (np.bincount in a batch): a few ulp from the single run's np.sum
 DIAGNOSTIC_COLUMNS = ("slip_speed_ms",)
+#: trace columns reduced by BLAS in a single run (np.dot): bit for bit only on the AVX-512 reference's CPU class
+BLAS_COLUMNS = ("slip_speed_ms",)
+
+
+def _numpy_dispatch_of_the_avx512_reference() -> bool:
+    """Whether NumPy's SIMD dispatch finds AVX512_SPR, as on the machine of the AVX-512 reference."""
+    from numpy._core._multiarray_umath import __cpu_features__
+
+    return bool(__cpu_features__.get("AVX512_SPR"))
 
 
 def _trace_sha(r) -> list[str]:
@@ -75,11 +90,13 @@ def test_refactored_loop_is_the_pre_refactor_solver(case):
     for c in r.trace.columns:
         want = ref512[f"{name}/trace/{c}"]
         got = r.trace[c].to_numpy()
-        if same:  # this machine is of the second reference's class
+        if same and c in BLAS_COLUMNS and not _numpy_dispatch_of_the_avx512_reference():
+            np.testing.assert_allclose(got, want, rtol=2e-15, atol=0.0, equal_nan=True, err_msg=f"{name} {c}")
+        elif same:  # this machine is of the second reference's class
             assert np.array_equal(got, want, equal_nan=True), (name, c)
         else:
             np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.nanmax(np.abs(want)), err_msg=c)
-    if same:
+    if same and _numpy_dispatch_of_the_avx512_reference():  # energies: dot products in BLAS, as BLAS_COLUMNS
         assert np.array_equal(energies(r), ref512[f"{name}/energies"]), name
 
 

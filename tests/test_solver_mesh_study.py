@@ -1,6 +1,7 @@
 """The mesh-study table: one run per (speed, size), error against the finest mesh of the same speed."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from skidsim.friction import ExponentialDecay
@@ -32,6 +33,28 @@ def test_mesh_study_table_and_error_definition():
     assert (t["slide_damping_model"] == base.slide_damping_model).all()
     # the law sees about the sliding speed on the gentle texture (m/s)
     assert np.allclose(t["mean_slip_speed_ms"], 60 / 3.6, rtol=0.1)
+
+
+def test_the_speeds_of_a_mesh_run_as_one_batch_with_the_single_runs_numbers():
+    """``batch=True`` runs the speeds of each mesh as one ``simulate_batch``: every column of the
+    table but the wall times and the energy residual (to rounding) equals the single runs' bit for bit, in the
+    same row order (speed-major)."""
+    pav = SinusoidalSurface(amplitude_m=0.1e-3, wavelength_x_m=4e-3, wavelength_y_m=5e-3)
+    base = SolverConfig(slide_length_mm=8.0, window_start_mm=3.0)
+    law = ExponentialDecay(0.4, 0.35, 0.6)
+    batched = mesh_study(pav, [2.0, 4.0], [30.0, 60.0], law=law, base=base, batch=True)
+    single = mesh_study(pav, [2.0, 4.0], [30.0, 60.0], law=law, base=base)
+    assert list(zip(batched["speed_kmh"], batched["element_mm"])) == [
+        (30.0, 4.0),
+        (30.0, 2.0),
+        (60.0, 4.0),
+        (60.0, 2.0),
+    ]
+    other = ["wall_s", "element_steps_per_s", "energy_residual_frac"]
+    pd.testing.assert_frame_equal(batched.drop(columns=other), single.drop(columns=other), check_exact=True)
+    # energies: per-member dot products round differently in a batch (docs/solver.md: to 1e-12 of the work)
+    np.testing.assert_allclose(batched["energy_residual_frac"], single["energy_residual_frac"], rtol=0, atol=1e-10)
+    assert batched["n_steps"].iloc[0] > batched["n_steps"].iloc[2]  # the members finish at different steps
 
 
 def test_richardson_recovers_the_limit_and_order_of_a_power_law():

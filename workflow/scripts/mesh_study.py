@@ -1,25 +1,14 @@
 """Snakemake adapter: the mesh study (study Figure 9) on one site's pavement, the study's friction law."""
 
-from dataclasses import replace
-
-from skidsim.config import solver_config
 from skidsim.plotting.solver import plot_mesh_study
 from skidsim.reconstruct import Heightfield
 from skidsim.runlog import setup_logging, write_csv
-from skidsim.solver.mesh_study import MeshStudyOptions, mesh_study
+from skidsim.solver.mesh_study import MeshStudyOptions, mesh_study, workflow_base
 
 log = setup_logging(snakemake.log[0])
 cfg = MeshStudyOptions.from_dict(snakemake.params.cfg)
 pav = Heightfield.from_npz(snakemake.input.pavement)
-# The reference preset's settings (full strip slide, no mass scaling) with the configured load and the contact
-# model (contact_gap) of the configured preset, so the study measures the discretisation error of the model the
-# campaign runs; only the element size varies.
-run_cfg = solver_config(snakemake.params.solver)
-base = replace(
-    solver_config({**snakemake.params.solver, "preset": "reference", "overrides": {}}),
-    contact_gap=run_cfg.contact_gap,
-    progress_every_s=60.0,
-)
+base = workflow_base(snakemake.params.solver)  # the reference preset with the campaign's load and contact gap
 log.info("mesh study on site %s: sizes %s mm, speeds %s km/h", snakemake.params.site, cfg.sizes_mm, cfg.speeds_kmh)
 table = mesh_study(pav, cfg.sizes_mm, cfg.speeds_kmh, base=base, log=log)
 table.insert(0, "site", snakemake.params.site)

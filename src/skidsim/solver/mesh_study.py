@@ -19,7 +19,7 @@ from skidsim.friction import ExponentialDecay
 from skidsim.options import section_items
 
 from .config import SolverConfig
-from .explicit import simulate
+from .explicit import simulate, simulate_batch
 
 #: The friction law of the study's mesh study (mu_s, mu_k, alpha in s/m).
 STUDY_MESH_LAW = ExponentialDecay(0.4, 0.35, 0.6)
@@ -53,6 +53,18 @@ class MeshStudyOptions:
         return cls(**d)
 
 
+def workflow_base(solver: dict, progress_every_s: float = 60.0) -> SolverConfig:
+    """The settings of the workflow's mesh study from its ``solver:`` config section (a dict): the reference
+    preset's (full strip slide, no mass scaling) with the configured load and the contact model (``contact_gap``)
+    of the configured preset, so the study measures the discretisation error of the model the campaign runs; only
+    the element size then varies."""
+    from skidsim.config import solver_config
+
+    run = solver_config(solver)
+    ref = solver_config({**solver, "preset": "reference", "overrides": {}})
+    return replace(ref, contact_gap=run.contact_gap, progress_every_s=progress_every_s)
+
+
 def mesh_study(
     pavement,
     sizes_mm: Sequence[float],
@@ -61,6 +73,7 @@ def mesh_study(
     law: ExponentialDecay = STUDY_MESH_LAW,
     base: SolverConfig | None = None,
     log=None,
+    batch: bool = False,
 ) -> pd.DataFrame:
     """One simulation per (speed, element size); returns the table with ``error_pct`` against the finest mesh.
 
@@ -73,12 +86,29 @@ def mesh_study(
     force-weighted), friction_model, slide_damping_model, sn_finest,
     error_pct (%).
     ``base``: the other solver settings (default: the reference preset); only ``element_mm`` varies.
+    ``batch``: the speeds of one mesh run as one :func:`skidsim.solver.simulate_batch` (the same mesh, pavement and
+    time step; every result but ``wall_s`` and the energy residual equals the single run's bit for bit, ``wall_s`` is
+    the batch's wall time shared in proportion to the members' steps, the energy residual agrees to rounding);
+    False (the default): one :func:`skidsim.solver.simulate` per run, because on the workflow's study (site E1-1,
+    2 to 0.5 mm, 20/40/60 km/h) the batch is slower in all (single / batched CPU time 0.89x): 1.32x faster at 2 mm,
+    0.82x at 0.5 mm, where a step is arithmetic on three times the arrays (a larger working set, not traced further)
+    (``benchmarks/bench_mesh_study.py``, docs/solver.md).
     """
     base = base or SolverConfig.reference()
+    speeds = [float(v) for v in speeds_kmh]
+    runs = {}
+    for h in sorted(sizes_mm, reverse=True):
+        cfg = replace(base, element_mm=float(h))
+        if batch:
+            for v, r in zip(speeds, simulate_batch(pavement, speeds, law, cfg)):
+                runs[v, float(h)] = r
+        else:
+            for v in speeds:
+                runs[v, float(h)] = simulate(pavement, v, law, cfg)
     rows = []
-    for v in speeds_kmh:
+    for v in speeds:
         for h in sorted(sizes_mm, reverse=True):
-            r = simulate(pavement, float(v), law, replace(base, element_mm=float(h)))
+            r = runs[v, float(h)]
             tr = r.trace
             w = tr[(tr["position_mm"] >= r.window_mm[0]) & (tr["position_mm"] <= r.window_mm[1])]
             fn = float(w["normal_n"].mean())
