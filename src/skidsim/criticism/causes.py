@@ -17,6 +17,7 @@ SECTION_SHARE_MIN = 0.5
 SECTION_UNEXPLAINED = "section (unexplained)"
 #: Label of a between-site section effect that the measured curves do not show beyond a quadratic texture model in
 #: the prediction model's terms (rule 6 of :func:`section_rule`).
+TEXTURE_MISFIT = "the texture model's misfit (no section effect in the measured curves beyond its quadratic form)"
 #: The kinds of cause :attr:`Cause.category` names.
 CATEGORIES = (
     "texture model",
@@ -28,7 +29,6 @@ CATEGORIES = (
     "sites.csv column",
     "functional form",
 )
-TEXTURE_MISFIT = "the texture model's misfit (no section effect in the measured curves beyond its quadratic form)"
 #: Sources of the texture explanations of a section effect (texture parameters, the texture-model candidate).
 TEXTURE_SOURCES = ("texture", "texture_model")
 
