@@ -47,7 +47,8 @@ def saturate(mu) -> np.ndarray:
     """Friction ``mu`` (dimensionless) with its implausible low-speed excess bent towards :data:`MU_CEILING`:
     ``mu`` where ``mu <= m0`` (the same floats), ``m0 + w tanh((mu - m0) / w)`` above it, ``m0`` =
     :data:`MU_SATURATION_START`, ``w = MU_CEILING - m0``: continuous with slope 1 at ``m0``, increasing, below
-    ``MU_CEILING``. On the generators' campaigns it acts only below about 18 km/h (module docstring)."""
+    ``MU_CEILING``. On the generators' spectral campaigns it acts below 15 km/h on all but a few sites
+    (docs/synthetic-campaign.md)."""
     mu = np.asarray(mu, float)
     w = MU_CEILING - MU_SATURATION_START
     over = mu > MU_SATURATION_START
