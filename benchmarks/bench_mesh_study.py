@@ -4,11 +4,12 @@
         [--sizes 2 1.5 1 0.75 0.5] [--speeds 20 40 60] [--config config/config.yaml]
 
 PAVEMENT: a Heightfield ``.npz`` of skidsim.reconstruct (the workflow's ``results/sites/<site>/pavement.npz``; the
-mesh study runs on the first site's). The solver settings are the workflow's (:func:`skidsim.solver.mesh_study.
-workflow_base` of the config's ``solver:`` section), the sizes and speeds those of its ``mesh_study:`` section unless
-given. The two variants alternate, ``--repeat`` times each, in one process with BLAS on one thread; prints the CPU
-seconds (``time.process_time``) of each repeat, their medians and the ratio, per element size, and checks that every
-SN and step count of the batched study equals the single runs' (exit status 1 otherwise).
+mesh study runs on the first site's). The solver settings are the workflow's
+(:func:`skidsim.config.mesh_study_solver_config` of the config's ``solver:`` section), the sizes and speeds those of
+its ``mesh_study:`` section unless given. The two variants alternate, ``--repeat`` times each, in one process with
+BLAS on one thread; prints the CPU seconds (``time.process_time``) of each repeat, their medians and the ratio, per
+element size, and checks that every SN and step count of the batched study equals the single runs' (exit status 1
+otherwise).
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ from pathlib import Path
 import yaml
 from threadpoolctl import threadpool_limits
 
+from skidsim.config import mesh_study_solver_config
 from skidsim.reconstruct import Heightfield
-from skidsim.solver.mesh_study import MeshStudyOptions, mesh_study, workflow_base
+from skidsim.solver.mesh_study import MeshStudyOptions, mesh_study
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,7 +42,7 @@ def main() -> int:
     study = MeshStudyOptions.from_dict(cfg.get("mesh_study"))
     sizes = a.sizes or list(study.sizes_mm)
     speeds = a.speeds or list(study.speeds_kmh)
-    base = workflow_base(cfg["solver"], progress_every_s=1e9)
+    base = mesh_study_solver_config(cfg["solver"], progress_every_s=1e9)
     pav = Heightfield.from_npz(a.pavement)
     cpu = {True: [], False: []}
     per_size = {True: {}, False: {}}

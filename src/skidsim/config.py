@@ -127,6 +127,18 @@ def solver_config(cfg: dict):
     return SolverConfig.from_dict(d, source="config solver.overrides")
 
 
+def mesh_study_solver_config(cfg: dict, progress_every_s: float = 60.0):
+    """The :class:`~skidsim.solver.SolverConfig` of the workflow's mesh study from its ``solver`` section: the
+    reference preset's settings (full strip slide, no mass scaling) with the configured load and the contact model
+    (``contact_gap``) of the configured preset, so the study measures the discretisation error of the model the
+    campaign runs; only the element size then varies (:func:`skidsim.solver.mesh_study.mesh_study`)."""
+    from dataclasses import replace
+
+    run = solver_config(cfg)
+    ref = solver_config({**cfg, "preset": "reference", "overrides": {}})
+    return replace(ref, contact_gap=run.contact_gap, progress_every_s=progress_every_s)
+
+
 def file_digest(path: str | Path, n: int = 12) -> str:
     """Short SHA-256 of a file's bytes (cache keys: a regenerated pavement invalidates its FE evaluations)."""
     import hashlib

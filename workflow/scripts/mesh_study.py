@@ -1,14 +1,15 @@
 """Snakemake adapter: the mesh study (study Figure 9) on one site's pavement, the study's friction law."""
 
+from skidsim.config import mesh_study_solver_config
 from skidsim.plotting.solver import plot_mesh_study
 from skidsim.reconstruct import Heightfield
 from skidsim.runlog import setup_logging, write_csv
-from skidsim.solver.mesh_study import MeshStudyOptions, mesh_study, workflow_base
+from skidsim.solver.mesh_study import MeshStudyOptions, mesh_study
 
 log = setup_logging(snakemake.log[0])
 cfg = MeshStudyOptions.from_dict(snakemake.params.cfg)
 pav = Heightfield.from_npz(snakemake.input.pavement)
-base = workflow_base(snakemake.params.solver)  # the reference preset with the campaign's load and contact gap
+base = mesh_study_solver_config(snakemake.params.solver)  # reference preset, the campaign's load and contact gap
 log.info("mesh study on site %s: sizes %s mm, speeds %s km/h", snakemake.params.site, cfg.sizes_mm, cfg.speeds_kmh)
 table = mesh_study(pav, cfg.sizes_mm, cfg.speeds_kmh, base=base, log=log)
 table.insert(0, "site", snakemake.params.site)

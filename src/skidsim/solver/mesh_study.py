@@ -53,18 +53,6 @@ class MeshStudyOptions:
         return cls(**d)
 
 
-def workflow_base(solver: dict, progress_every_s: float = 60.0) -> SolverConfig:
-    """The settings of the workflow's mesh study from its ``solver:`` config section (a dict): the reference
-    preset's (full strip slide, no mass scaling) with the configured load and the contact model (``contact_gap``)
-    of the configured preset, so the study measures the discretisation error of the model the campaign runs; only
-    the element size then varies."""
-    from skidsim.config import solver_config
-
-    run = solver_config(solver)
-    ref = solver_config({**solver, "preset": "reference", "overrides": {}})
-    return replace(ref, contact_gap=run.contact_gap, progress_every_s=progress_every_s)
-
-
 def mesh_study(
     pavement,
     sizes_mm: Sequence[float],
