@@ -4,8 +4,7 @@ FE, calibration, regression, diagnosis), several seeds per kind.
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/workflow_campaigns.py WORKDIR [--seeds 8,9] [--kinds KIND,...]
 
 The campaigns are those of ``make test-campaigns`` (tests/test_diagnosis_workflow*.py), built by the same
-functions, with only the seed changed (the tests use seed 7); ``categorical_speed`` is not a test campaign and is
-built by the same function as the section column's:
+functions, with only the seed changed (the tests use seed 7):
 
 * ``none``: the default generator's truth (exponential-decay law of the texture), no effect; 16 sites (8 sections
   x 2), as the test. Right: nothing named.
@@ -58,7 +57,7 @@ EXTRA_KINDS = ("texture_speed_chips",)
 def run_kind(kind: str, seed: int, workdir: Path) -> dict:
     """Run one campaign; return ``{"causes", "gain"}`` of its diagnosis."""
     from test_diagnosis_workflow import NO_EFFECTS, run_campaign
-    from test_diagnosis_workflow_effects import SEASONS
+    from test_diagnosis_workflow_effects import LOW_SPEED_MIX, SEASONS
     from test_diagnosis_workflow_texture import run_texture_campaign
 
     workdir.mkdir(parents=True, exist_ok=True)
@@ -75,10 +74,7 @@ def run_kind(kind: str, seed: int, workdir: Path) -> dict:
         eff = NO_EFFECTS + """    section: {enabled: true, column: mix, offsets: {"WMA chemical": -0.05}}\n"""
         return run_campaign(workdir, seed=seed, effects=eff, sites_per_section=2)
     if kind == "categorical_speed":
-        eff = NO_EFFECTS + (
-            """    section: {enabled: true, column: mix, offsets: {"WMA chemical": -0.21}, speed_shape: low_speed}\n"""
-        )
-        return run_campaign(workdir, seed=seed, effects=eff)
+        return run_campaign(workdir, seed=seed, effects=LOW_SPEED_MIX)
     if kind == "temperature":
         eff = NO_EFFECTS.replace("temperature: {enabled: false}", "temperature: {enabled: true}")
         return run_campaign(workdir, seed=seed, effects=eff, synthetic_extra=SEASONS)

@@ -10,6 +10,11 @@ plain residual test has p 0.29. The texture-adjusted test (docs/model-criticism.
 Mix: the three "WMA chemical" sections (E3-E5) are 0.05 lower in friction (the truth's section effect on the
 ``mix`` column), something no texture parameter carries; mix is section-level, so it is tested on the 12 sections
 (2 sites per section here, 24 sites: the sections are the units, and the suite stays within its time budget).
+
+Mix x speed (categorical x speed): the same three sections lose low-speed friction only, 0.21 at 20 km/h falling
+to nothing at 60 km/h (the truth's section effect with ``speed_shape: low_speed``, the size of the rate campaigns'
+categorical x speed effect; 36 sites). Through the workflow it was named in seeds 7, 8 and 9 (2026-11-30,
+``benchmarks/workflow_campaigns.py``, docs/model-criticism.md section 9).
 """
 
 from __future__ import annotations
@@ -25,6 +30,12 @@ from test_diagnosis_workflow import NO_EFFECTS, named, run_campaign
 SEASONS = """  temperature_range_c: [5.0, 35.0]
   temperature_site_sd_c: 4.0
 """
+#: The truth's effects of the categorical x speed campaign: the "WMA chemical" sections lose low-speed friction.
+LOW_SPEED_MIX = (
+    NO_EFFECTS
+    + """    section: {enabled: true, column: mix, offsets: {"WMA chemical": -0.21}, speed_shape: low_speed}
+"""
+)
 
 
 @pytest.mark.slow
@@ -59,6 +70,26 @@ def test_workflow_names_a_hidden_mix_effect(tmp_path):
     top = named(out["causes"])
     assert top is not None, [(c["variable"], c["level"], c["kind"], c["p_adjusted"]) for c in out["causes"][:5]]
     assert top["variable"] == "mix" and top["level"] == "between-site" and top["section_level"], top
+    sites = out["gain"]["scopes"]["held_out_sites"]
+    assert out["gain"]["cause"]["variable"] == "mix"
+    assert sites["gain_excludes_zero"] and sites["rmse_after"] < sites["rmse_before"], sites
+
+
+@pytest.mark.slow
+@pytest.mark.campaign
+def test_workflow_names_a_hidden_categorical_speed_effect(tmp_path):
+    out = run_campaign(tmp_path, seed=7, effects=LOW_SPEED_MIX)
+    causes = out["causes"]
+    top = named(causes)
+    assert top is not None, [(c["variable"], c["level"], c["kind"], c["p_adjusted"]) for c in causes[:5]]
+    assert top["variable"] == "mix" and top["level"] == "between-site" and top["section_level"], top
+    assert top["category"] == "sites.csv column"
+    # the speed shape is found too: mix x speed between sites is significant and carries most of the section x
+    # speed effect
+    shape = next(
+        c for c in causes if c["variable"] == "mix" and c["level"] == "between-site" and c["kind"] == "x_speed"
+    )
+    assert shape["significant"] and shape["section_share"] >= 0.5, shape
     sites = out["gain"]["scopes"]["held_out_sites"]
     assert out["gain"]["cause"]["variable"] == "mix"
     assert sites["gain_excludes_zero"] and sites["rmse_after"] < sites["rmse_before"], sites
