@@ -41,6 +41,23 @@ def _sliding_max(f: np.ndarray, size: int, stride: int = 1) -> np.ndarray:
     return np.maximum(cur[:n_out], cur[shift : shift + n_out])
 
 
+def _candidates(
+    f: np.ndarray, size: int, stride: int, lo: int, hi: int, min_depth: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Depths (mm) of the points ``f[lo:hi]`` of a flat buffer of extended profiles whose consecutive points are
+    ``stride`` apart, and the mask of the furrow candidates among them: a strict local minimum at least
+    ``min_depth`` deep. The depth is the lower of the maxima of the ``size`` points up to the point (the window
+    starting ``size`` points before it) and of the ``size`` points after it, minus the point."""
+    win = _sliding_max(f, size, stride)  # win[j]: max of f[j], f[j + stride], ... (size points)
+    zc = f[lo:hi]
+    depth = np.minimum(win[lo - size * stride : hi - size * stride], win[lo + stride : hi + stride])
+    depth -= zc
+    keep = zc < f[lo - stride : hi - stride]  # strict local minimum
+    keep &= zc < f[lo + stride : hi + stride]
+    keep &= depth >= min_depth
+    return depth, keep
+
+
 def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf) -> tuple[np.ndarray, int]:
     """Depths (mm) of the furrow candidates along ``axis`` at least ``min_depth`` (mm) deep, profile by profile
     in the order of the profiles (rows of ``z`` for axis 1, columns for axis 0), and the number of tested points.
@@ -75,16 +92,8 @@ def _furrow_depths(z: np.ndarray, w: int, axis: int, min_depth: float = -np.inf)
         bb[:, size : size + n] = prof
         bb[:, :size] = prof[:, :1]
         bb[:, size + n :] = prof[:, -1:]
-        f = bb.ravel()
-        win = _sliding_max(f, size)  # win[j]: max of f[j : j + size]
         lo, hi = k0, (b1 - b0 - 1) * length + k1
-        zc = f[lo:hi]
-        # before: the `size` points up to the point (win from k - size); after: the `size` points from k + 1
-        depth = np.minimum(win[lo - size : hi - size], win[lo + 1 : hi + 1])
-        depth -= zc
-        keep = zc < f[lo - 1 : hi - 1]  # strict local minimum
-        keep &= zc < f[lo + 1 : hi + 1]
-        keep &= depth >= min_depth
+        depth, keep = _candidates(bb.ravel(), size, 1, lo, hi, min_depth)
         keep &= tested[lo:hi]
         out.append(depth[keep])
     return np.concatenate(out), count * (n - 2 * half)
@@ -108,14 +117,7 @@ def _column_furrow_depths(z: np.ndarray, size: int, min_depth: float, k0: int, k
         e[size : size + n] = z[:, c0:c1]
         e[:size] = z[0, c0:c1]
         e[size + n :] = z[-1, c0:c1]
-        win = _sliding_max(f, size, cb)  # win[k cb + c]: max of rows k .. k + size - 1 of column c
-        lo, hi = k0 * cb, k1 * cb
-        zc = f[lo:hi]
-        depth = np.minimum(win[lo - size * cb : hi - size * cb], win[lo + cb : hi + cb])
-        depth -= zc
-        keep = zc < f[lo - cb : hi - cb]  # strict local minimum
-        keep &= zc < f[lo + cb : hi + cb]
-        keep &= depth >= min_depth
+        depth, keep = _candidates(f, size, cb, k0 * cb, k1 * cb, min_depth)  # a row is a shift by cb points
         out.append(depth.reshape(-1, cb).T[keep.reshape(-1, cb).T])  # column by column
     return np.concatenate(out)
 
