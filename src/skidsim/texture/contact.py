@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .height import finite_mean
+
 
 def top_zone(raw: np.ndarray, top_pct: float) -> np.ndarray:
     """Boolean mask of the points of ``raw`` (mm, complete) at or above ``Smc(top_pct)``, the height at the areal
@@ -48,8 +50,8 @@ def contact_parameters(
         raise ValueError(f"contact_parameters: raw {r.shape} and micro {m.shape} differ in shape")
     if min(m.shape) < 2:
         raise ValueError(f"contact_parameters: surface is {m.shape}, need >= 2x2")
-    mean = m.mean()
-    if not np.isfinite(mean) and not np.isfinite(m).all():  # a finite mean: no NaN, no infinity
+    mean = finite_mean(m)
+    if mean is None:
         raise ValueError("contact_parameters: the micro band has invalid points; fill them first (fill_invalid)")
     top = top_zone(r, top_pct)
     sq = float(np.sqrt(np.mean((m[top] - mean) ** 2)))

@@ -11,6 +11,17 @@ import numpy as np
 from .pairwise import leaves, pairwise_tree, tree_sum
 
 
+def finite_mean(z: np.ndarray):
+    """The mean of the heights ``z`` (mm), or None when ``z`` holds a NaN or an infinity. A finite mean means
+    finite heights (a NaN or an infinity makes the sum NaN or infinite), so the point-by-point check runs only
+    where the mean is not finite (an overflowing sum of finite heights passes it, as the check alone would).
+    An empty array gives NaN."""
+    mean = z.mean() if z.size else np.nan
+    if np.isfinite(mean) or np.isfinite(z).all():
+        return mean
+    return None
+
+
 def height_parameters(z: np.ndarray) -> dict[str, float]:
     """Height parameters of a complete (no NaN) height array in mm: Sq, Ssk, Sku, Sp, Sv, Sz, Sa.
 

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-import numpy as np
-
 from skidsim.errors import ConfigError
 from skidsim.surface import Surface
 
@@ -13,7 +11,7 @@ from .despeckle import METHODS
 from .features import PRUNING_REFERENCES, feature_parameters, motif_parameters, pruning_threshold
 from .filters import FILL_METHODS, form_degree
 from .furrows import furrow_parameters
-from .height import height_parameters
+from .height import finite_mean, height_parameters
 from .hybrid import hybrid_parameters
 from .material_ratio import material_ratio_parameters
 from .segmentation import segment
@@ -210,10 +208,8 @@ def areal_parameters(
     """
     opt = options if isinstance(options, TextureOptions) else TextureOptions.from_dict(options)
     z = surface.heights
-    # a finite mean means finite heights (a NaN or an infinity makes the sum NaN or infinite): the full check only
-    # where the mean is not finite
-    mean = z.mean() if z.size else np.nan
-    if not np.isfinite(mean) and not np.isfinite(z).all():
+    mean = finite_mean(z)
+    if mean is None:
         raise ValueError(
             f"areal_parameters: surface {surface.name!r} band {band!r} has invalid points; "
             "fill them first (fill_invalid)"
