@@ -8,6 +8,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 import pandas as pd
 
+from .covariates import names_temperature
 from .options import DiagnosisOptions
 
 #: The naming rule of a section effect: a candidate is named for it only when it explains at least this share of
@@ -122,7 +123,7 @@ class Cause:
             return "drainage" if (self.family == "primary" and self.kind == "x_speed") else "texture parameter"
         if self.variable == "functional_form":
             return "functional form"
-        if self.dtype == "numeric" and "temp" in self.variable.lower():
+        if names_temperature(self.variable, self.dtype):
             return "temperature"
         return "sites.csv column"
 

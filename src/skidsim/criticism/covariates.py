@@ -88,9 +88,14 @@ def site_covariates(
     return pd.DataFrame(out, index=s.index), info
 
 
+def names_temperature(name: str, dtype: str) -> bool:
+    """Whether a numeric column called ``name`` is a temperature (deg C): its name contains 'temp'."""
+    return dtype == "numeric" and "temp" in str(name).lower()
+
+
 def temperature_columns(cov: pd.DataFrame, info: dict) -> list[str]:
     """Numeric sites.csv columns whose name contains 'temp' (deg C): the temperature hypotheses (primary family)."""
-    return [c for c in cov.columns if info[c] == ("sites", "numeric") and "temp" in str(c).lower()]
+    return [c for c in cov.columns if info[c][0] == "sites" and names_temperature(c, info[c][1])]
 
 
 def find_mpd_column(cov: pd.DataFrame, info: dict | None = None) -> str | None:

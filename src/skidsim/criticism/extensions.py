@@ -43,7 +43,7 @@ import numpy as np
 from ..errors import ConfigError, InputError
 from ..friction import KMH_PER_MS
 from .causes import Cause
-from .covariates import DEFAULT_EXCLUDE, find_mpd_column, site_covariates
+from .covariates import DEFAULT_EXCLUDE, find_mpd_column, names_temperature, site_covariates
 
 #: Universal WLF constants (Williams, Landel & Ferry 1955).
 WLF_C1 = 8.86
@@ -346,7 +346,7 @@ def apply_extension(
     pcs = cause.texture_pcs_cv if cause.dtype == "numeric" else -1
     generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope", texture_pcs=pcs)
     name = cause.variable.lower()
-    if "temp" in name and cause.dtype == "numeric":
+    if names_temperature(cause.variable, cause.dtype):
         return ExtendedModel(cause, TemperatureShift(column=cause.variable, texture_pcs=pcs), generic)
     cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
     mpd = find_mpd_column(cov)
