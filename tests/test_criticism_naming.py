@@ -181,12 +181,20 @@ def _cause(variable, share, *, sig=True, kind="main", section_level=True, sectio
 
 
 def test_the_category_says_what_kind_of_cause_an_entry_is():
-    """``Cause.category``: every branch of the mapping; a texture parameter is the texture model's misfit with
-    its label (between sites), the MPD column x speed within sites is drainage (primary family), other texture
-    tests within sites are texture parameters."""
+    """``Cause.category``: every branch of the mapping; a texture parameter between sites is the texture model's
+    misfit (by its source and level, whatever its label says), the MPD column x speed within sites is drainage
+    (primary family), other texture tests within sites are texture parameters."""
     texture = replace(_cause("micro_Sdq", 0.6, section_level=False, source="texture"), label="", level="within-site")
     cases = [
-        (replace(texture, label="the texture model misses how micro_Sdq changes the friction level"), "texture model"),
+        (replace(texture, level="between-site"), "texture model"),
+        (
+            replace(texture, variable="profile_MPD", kind="x_speed", family="primary", level="between-site"),
+            "texture model",
+        ),
+        (
+            replace(texture, label="the texture model misses how micro_Sdq changes the friction level"),
+            "texture parameter",
+        ),
         (replace(texture, variable="profile_MPD", kind="x_speed", family="primary"), "drainage"),
         (replace(texture, kind="x_speed", family="secondary"), "texture parameter"),
         (replace(_cause("texture_model[curved in x]", 0.6, source="texture_model")), "texture model"),

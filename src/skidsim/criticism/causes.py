@@ -115,7 +115,7 @@ class Cause:
         column); ``temperature`` for a temperature column of sites.csv
         (:func:`skidsim.criticism.covariates.temperature_columns`); ``sites.csv column`` for any other sites.csv
         column; ``functional form`` for the shape of the friction law."""
-        if self.source == "texture_model" or self.label.startswith("the texture model") or self.label == TEXTURE_MISFIT:
+        if reads_as_texture_model(self.source, self.level) or self.label == TEXTURE_MISFIT:
             return "texture model"
         if self.section_id:
             return SECTION_UNEXPLAINED if self.label == SECTION_UNEXPLAINED else "section"
@@ -144,20 +144,28 @@ def _group(variable: str, candidates, corr: pd.DataFrame, corr_group: float) -> 
     return ()
 
 
+def reads_as_texture_model(source: str, level: str) -> bool:
+    """Whether a test of this ``source`` at this ``level`` is reported as the texture model: a texture-model
+    candidate, or a texture parameter between sites (the between-site residual is the texture model's held-out
+    error, so a texture column that explains it shows what the texture model misses). One rule for the label of
+    :func:`_label` and for :attr:`Cause.category`."""
+    return source == "texture_model" or (source == "texture" and level == "between-site")
+
+
 def _label(t, mpd: str | None) -> str:
     """What the report names for a test: the texture model in words for a texture-model candidate, and for a
     texture parameter between sites the texture model's misfit it shows (for the MPD column x speed: the IFI speed
     constant, drainage through the macrotexture, which the texture model's per-speed terms do not follow); section
     identity is labelled by :func:`section_rule`; else empty (the variable itself)."""
+    if not reads_as_texture_model(t.source, t.level):
+        return ""
     if t.source == "texture_model":
         return f"the texture model: {t.words}"
-    if t.source == "texture" and t.level == "between-site":
-        what = "friction level" if t.kind == "main" else "speed shape of friction"
-        ifi = " (the IFI speed constant Sp = 14.2 + 89.7 MPD: drainage through the macrotexture)"
-        return f"the texture model misses how {t.variable} changes the {what}" + (
-            ifi if (t.variable == mpd and t.kind == "x_speed") else ""
-        )
-    return ""
+    what = "friction level" if t.kind == "main" else "speed shape of friction"
+    ifi = " (the IFI speed constant Sp = 14.2 + 89.7 MPD: drainage through the macrotexture)"
+    return f"the texture model misses how {t.variable} changes the {what}" + (
+        ifi if (t.variable == mpd and t.kind == "x_speed") else ""
+    )
 
 
 def make_causes(tests, adjustment, candidates, options, n_permutations: int) -> list[Cause]:
