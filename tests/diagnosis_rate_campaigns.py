@@ -129,6 +129,50 @@ def wlf_log10_shift(t_c, t_ref_c=WLF["t_ref_c"], c1=WLF["c1"], c2_k=WLF["c2_k"])
     return -c1 * dt / (c2_k + dt)
 
 
+#: The kinds whose effect acts through a column of sites.csv (:func:`column_effect`).
+COLUMN_KINDS = ("section_column", "site_column", "temperature", "categorical_speed")
+
+
+def column_effect(kind: str, row, v_kmh, mu_of, size: float = 1.0) -> np.ndarray:
+    """The friction (mu) at ``v_kmh`` (km/h) of a site whose friction without the effect is ``mu_of(v_kmh)``, with
+    the effect of ``kind`` (:data:`COLUMN_KINDS`, module docstring) read from its sites.csv ``row`` (a mapping):
+    traffic polishing by ``cum_traffic_msa``, the station by ``station_ft``, the WLF shift of the slip speed by
+    ``temperature_c`` (deg C), the low-speed loss of the ``aggregate`` :data:`POLISHED`; ``size`` scales each."""
+    v = np.asarray(v_kmh, float)
+    if kind == "temperature":
+        return mu_of(v * 10.0 ** (size * wlf_log10_shift(float(row["temperature_c"]))))
+    mu = mu_of(v)
+    if kind == "section_column":
+        return mu * (1.0 - size * POLISH_PER_MSA * (float(row["cum_traffic_msa"]) - 10.0))
+    if kind == "site_column":
+        return mu * (1.0 - size * STATION_PER_FT * float(row["station_ft"]))
+    if kind == "categorical_speed":
+        if row["aggregate"] != POLISHED:
+            return mu
+        return mu - size * POLISH_LOW_SPEED_MU * np.clip((60.0 - v) / 40.0, 0.0, 1.0)
+    raise ValueError(f"kind: expected one of {COLUMN_KINDS}, got {kind!r}")
+
+
+def hide_column_effect(campaign_dir, truth_dir, kind: str, size: float = 1.0) -> None:
+    """Hide the effect of ``kind`` (:data:`COLUMN_KINDS`) in a campaign written by
+    :func:`skidsim.generators.write_campaign` whose sites.csv already holds the effect's column: each site's DFT
+    trace ``dft/<site>.csv`` gains ``column_effect(...) - mu_true`` at its speeds, ``mu_true`` being the
+    generator's own friction of the site (:func:`skidsim.generators.campaign.site_mu` of its truth JSON in
+    ``truth_dir``), so the trace keeps its noise; rounded to 0.001 as the generator writes it."""
+    from skidsim.atomic import write_text
+    from skidsim.generators.campaign import site_mu
+
+    camp = Path(campaign_dir)
+    for row in pd.read_csv(camp / "sites.csv").to_dict("records"):
+        fr = json.loads((Path(truth_dir) / f"{row['site']}.json").read_text())
+        dft = pd.read_csv(camp / row["dft"])
+        v = dft["speed_kmh"].to_numpy(float)
+        mu_true = site_mu(fr, v)
+        mu = dft["mu"].to_numpy(float) + column_effect(kind, row, v, lambda u, fr=fr: site_mu(fr, u), size) - mu_true
+        lines = ["speed_kmh,mu"] + [f"{a:.2f},{b:.3f}" for a, b in zip(v, mu)]
+        write_text(camp / row["dft"], "\n".join(lines) + "\n")
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # texture: the stand-in (default) and the generators' surfaces (chips, spectral)
 # ---------------------------------------------------------------------------------------------------------------
@@ -370,27 +414,17 @@ def generate(
         driver = micro
     base = _base_law(source, tex, rng, driver)
     plain = _base_law(source, tex, _rng(seed, source, "friction"), micro) if kind == "texture_measure" else base
-    temp = sites["temperature_c"].to_numpy(float)
-    shift = 10.0 ** (size * wlf_log10_shift(temp))
-    msa = sites["cum_traffic_msa"].to_numpy(float)
-    station = sites["station_ft"].to_numpy(float)
+    rows = sites.to_dict("records")
     sdq = tex["macro_Sdq"].to_numpy(float)
     z_sdq = (sdq - sdq.mean()) / sdq.std()
-    polished = (sites["aggregate"] == POLISHED).to_numpy()
 
     def truth_mu(i, v):
         v = np.asarray(v, float)
-        if kind == "temperature":
-            return base(i, v * shift[i])
+        if kind in COLUMN_KINDS:
+            return column_effect(kind, rows[i], v, lambda u: base(i, u), size)
         mu = base(i, v)
-        if kind == "section_column":
-            mu = mu * (1.0 - size * POLISH_PER_MSA * (msa[i] - 10.0))
-        elif kind == "site_column":
-            mu = mu * (1.0 - size * STATION_PER_FT * station[i])
-        elif kind == "texture_speed":
+        if kind == "texture_speed":
             mu = mu + size * HYST_MU * z_sdq[i] * (v - 20.0) / 50.0
-        elif kind == "categorical_speed" and polished[i]:
-            mu = mu - size * POLISH_LOW_SPEED_MU * np.clip((60.0 - v) / 40.0, 0.0, 1.0)
         return mu
 
     noise = noise_mu if noise_mu is not None else (0.005 if source == "default" else 0.007)  # mu per DFT point

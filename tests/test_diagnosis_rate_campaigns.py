@@ -167,3 +167,53 @@ def test_the_contact_zone_columns_follow_the_hidden_contact_microtexture_better_
     hidden = np.log(chips_texture["hidden_micro_contact"].to_numpy())
     r = {c: np.corrcoef(np.log(chips_texture[c].to_numpy()), hidden)[0, 1] for c in ("micro_Sq", "micro_Sq_top")}
     assert r["micro_Sq_top"] > r["micro_Sq"] + 0.1, r
+
+
+def test_hide_column_effect_changes_a_written_campaign_as_the_rate_campaigns(tmp_path):
+    """The rate campaigns' column effects hidden in a campaign the spectral generator wrote: each DFT trace moves by
+    the effect of its site's sites.csv row on the generator's own friction (the noise kept, 0.001 rounding), and
+    only the polished aggregate's sites move for the categorical kind."""
+    import json
+
+    import pandas as pd
+
+    from skidsim.generators import write_campaign
+    from skidsim.generators.campaign import site_mu
+
+    over = {"n_sites": 8, "n_sections": 4, "shape": [60, 80], "spacing_mm": 0.2, "seed": 2}
+    for kind in rc.COLUMN_KINDS:
+        camp, truth_dir = tmp_path / kind, tmp_path / f"{kind}-truth"
+        write_campaign(camp, "spectral", over, truth_dir=truth_dir)
+        sites = pd.read_csv(camp / "sites.csv").drop(columns="temperature_c")
+        design = rc.site_design(2, sites["site"], sites["section"])
+        sites = pd.concat([sites, design.drop(columns=["site", "section"])], axis=1)
+        sites.loc[sites["section"] == sites["section"].iloc[0], "aggregate"] = rc.POLISHED
+        sites.to_csv(camp / "sites.csv", index=False)
+        before = {s: pd.read_csv(camp / "dft" / f"{s}.csv") for s in sites["site"]}
+        rc.hide_column_effect(camp, truth_dir, kind)
+        for row in sites.to_dict("records"):
+            old, new = before[row["site"]], pd.read_csv(camp / "dft" / f"{row['site']}.csv")
+            v = old["speed_kmh"].to_numpy(float)
+            assert np.array_equal(new["speed_kmh"].to_numpy(float), v)
+            fr = json.loads((truth_dir / f"{row['site']}.json").read_text())
+            mu = site_mu(fr, v)
+            if kind == "section_column":
+                want = mu * (-rc.POLISH_PER_MSA * (row["cum_traffic_msa"] - 10.0))
+            elif kind == "site_column":
+                want = mu * (-rc.STATION_PER_FT * row["station_ft"])
+            elif kind == "temperature":
+                want = site_mu(fr, v * 10.0 ** rc.wlf_log10_shift(row["temperature_c"])) - mu
+            else:
+                ramp = np.clip((60.0 - v) / 40.0, 0.0, 1.0)
+                want = -rc.POLISH_LOW_SPEED_MU * ramp if row["aggregate"] == rc.POLISHED else 0.0 * v
+            got = new["mu"].to_numpy(float) - old["mu"].to_numpy(float)
+            assert np.abs(got - want).max() <= 0.0011, (kind, row["site"], np.abs(got - want).max())
+        moved = [not before[s].equals(pd.read_csv(camp / "dft" / f"{s}.csv")) for s in sites["site"]]
+        if kind == "categorical_speed":
+            assert moved == list(sites["aggregate"] == rc.POLISHED)
+        elif kind == "site_column":  # the first station of a section is 0 ft: no effect there
+            assert moved == list(sites["station_ft"] != 0) and any(moved)
+        else:
+            assert all(moved)
+    with pytest.raises(ValueError, match="kind"):
+        rc.column_effect("texture_speed", {}, [20.0], lambda u: u)

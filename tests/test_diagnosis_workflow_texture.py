@@ -34,7 +34,7 @@ import pytest
 from conftest import ROOT, run_snakemake, snakemake_env
 
 sys.path.insert(0, str(Path(__file__).parent))
-from diagnosis_rate_campaigns import site_design
+from diagnosis_rate_campaigns import hide_column_effect, site_design
 
 from skidsim.atomic import write_text
 
@@ -56,9 +56,15 @@ DECOYS = (
 )
 
 
-def run_texture_campaign(workdir: Path, generator: str, effect: str, kappa: float, seed: int = 7) -> dict:
+def run_texture_campaign(
+    workdir: Path, generator: str, effect: str | None, kappa: float, seed: int = 7, column_kind: str | None = None
+) -> dict:
     """Write the campaign (36 sites, the hidden effect, decoy columns), run the workflow to the diagnosis, return
-    causes.json and gain.json."""
+    causes.json and gain.json. ``column_kind`` (one of :data:`diagnosis_rate_campaigns.COLUMN_KINDS`, with
+    ``effect`` None): instead of a texture effect, the rate campaigns' effect of a sites.csv column is hidden in the
+    DFT traces (:func:`diagnosis_rate_campaigns.hide_column_effect`), the generator's random section factors are
+    off (one hidden effect per campaign), and for ``temperature`` the rate campaigns' temperature_c (18-22 deg C per
+    section) replaces the generator's."""
     from skidsim.generators import write_campaign
 
     camp = workdir / "campaign"
@@ -69,10 +75,17 @@ def run_texture_campaign(workdir: Path, generator: str, effect: str, kappa: floa
         "seed": seed,
         "friction": {"hidden_effect": effect, "hidden_kappa": kappa},
     }
+    if column_kind is not None:
+        over["friction"].update(section_level_sd=0.0, section_sp_sd=0.0)
     write_campaign(camp, generator, over, truth_dir=workdir / "truth")
     sites = pd.read_csv(camp / "sites.csv")
-    decoys = site_design(seed, sites["site"], sites["section"])[list(DECOYS)]
-    pd.concat([sites, decoys], axis=1).to_csv(camp / "sites.csv", index=False)
+    cols = list(DECOYS) + (["temperature_c"] if column_kind == "temperature" else [])
+    decoys = site_design(seed, sites["site"], sites["section"])[cols]
+    pd.concat([sites.drop(columns=[c for c in cols if c in sites.columns]), decoys], axis=1).to_csv(
+        camp / "sites.csv", index=False
+    )
+    if column_kind is not None:
+        hide_column_effect(camp, workdir / "truth", column_kind)
     cfg = workdir / "test.yaml"
     write_text(cfg, CONFIG)
     try:
