@@ -224,3 +224,39 @@ def test_a_texture_model_term_on_the_speed_slope_recovers_a_slope_linear_in_its_
     assert np.allclose(d.reshape(12, -1).std(axis=1), 0.0, atol=1e-12)  # a level per site, no slope
     with pytest.raises(ConfigError):
         TextureModelTerm("texture_model[x]", on="shape")
+
+
+def test_wlf_from_curves_separates_temperature_from_the_macrotexture_decay():
+    """PIARC/IFI-like curves whose decay constant is set by the macrotexture (Sp = 14.2 + 89.7 MPD km/h) and
+    shifted by WLF (T_r 20 deg C) over a narrow temperature range (sections at 18-22 deg C) on campaigns whose
+    sections happen to be rougher where warmer: with the log MPD term of the decay constant (``decay_column``)
+    T_r comes back near 20 deg C (median of 8 campaigns) with the slope of the IFI form; without it the
+    macrotexture's share of the decay constants is read as temperature and T_r is biased by more than 10 K. The
+    decay covariate is None where the column is missing or not positive."""
+    from skidsim.criticism.recalibration import decay_covariate, wlf_from_curves
+
+    ext = TemperatureShift(decay_column="profile_MPD")
+    v = np.tile(np.arange(20.0, 70.1, 2.0), (36, 1))
+    with_x, without_x, slopes = [], [], []
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        t_sec = rng.uniform(18.0, 22.0, 12)
+        t = np.repeat(t_sec, 3) + rng.normal(0.0, 0.7, 36)
+        mpd = np.repeat(0.9 * np.exp(0.1 * (t_sec - 20.0)), 3) * np.exp(rng.normal(0.0, 0.15, 36))
+        a_t = 10.0 ** (wlf_log10_shift(t, 20.0) - wlf_log10_shift(t.mean(), 20.0))
+        alpha = 3.6 / (14.2 + 89.7 * mpd) * a_t  # s/m: exp(-alpha v / 3.6) = exp(-v a_T / Sp), v in km/h
+        y = 0.9 * np.exp(-alpha[:, None] * v / 3.6) + rng.normal(0.0, 0.005, v.shape)
+        cov = pd.DataFrame({"profile_MPD": mpd}, index=[f"s{i}" for i in range(36)])
+        x, mean = decay_covariate(ext, cov, list(cov.index))
+        assert mean == pytest.approx(np.log10(mpd).mean()) and abs(x.mean()) < 1e-12
+        fit = wlf_from_curves(ext, t, v, y, ext.t_ref_bounds_c(t), x=x)
+        plain = wlf_from_curves(ext, t, v, y, ext.t_ref_bounds_c(t))
+        assert fit["sse"] <= plain["sse"] and plain["decay_slope"] is None
+        with_x.append(fit["t_ref_c"])
+        without_x.append(plain["t_ref_c"])
+        slopes.append(fit["decay_slope"])
+    assert np.median(with_x) == pytest.approx(20.0, abs=4.0), with_x
+    assert np.median(without_x) > 30.0, without_x
+    assert -1.0 < np.median(slopes) < -0.6, slopes  # d log10(1/Sp) / d log10 MPD near MPD 0.9 mm: -0.85
+    for bad in (pd.DataFrame({"other": mpd}, index=cov.index), cov.assign(profile_MPD=-mpd)):
+        assert decay_covariate(ext, bad, list(cov.index)) == (None, None)

@@ -144,7 +144,11 @@ class TemperatureShift:
     (fitted by :func:`skidsim.criticism.recalibration.recalibrate` within ``t_ref_bounds_c``); ``level_per_c`` (1/K) the
     vertical shift slope, fitted within ``level_bounds_per_c`` when ``fit_level`` (else held at its value; 0 =
     the pure WLF speed shift); ``column`` the temperature
-    column (deg C) of sites.csv. ``texture_pcs >= 0`` (cause found by the texture-adjusted test): between sites the
+    column (deg C) of sites.csv. ``decay_column``: a texture column (mm, the MPD) whose log10 the reference decay
+    constant of the measured curves follows across sites besides temperature
+    (:func:`skidsim.criticism.recalibration.wlf_from_curves`: the IFI speed constant Sp = 14.2 + 89.7 MPD km/h
+    makes the decay of friction with speed a property of the macrotexture too); None: one reference decay
+    constant for the campaign. ``texture_pcs >= 0`` (cause found by the texture-adjusted test): between sites the
     shift is evaluated at ``T_anchor + T~_i``, ``T~`` the part of T that the first ``texture_pcs`` texture
     principal components do not predict (fitted on the training sites), since the texture model already carries
     the texture-predictable part. Source: Williams, Landel & Ferry (1955) J. Am. Chem. Soc. 77, 3701; Grosch (1963)
@@ -161,6 +165,7 @@ class TemperatureShift:
     level_bounds_per_c: tuple[float, float] = (-0.05, 0.05)
     physical: bool = True
     texture_pcs: int = -1
+    decay_column: str | None = None
 
     def vertical_factor(self, temperature_c, anchor_c: float, level_per_c: float | None = None):
         """Vertical shift factor ``b_T = 1 + level_per_c (T - T_anchor)`` (dimensionless; level_per_c in 1/K),
@@ -346,10 +351,10 @@ def apply_extension(
     pcs = cause.texture_pcs_cv if cause.dtype == "numeric" else -1
     generic = CovariateTerm(cause.variable, on="level" if cause.kind == "main" else "slope", texture_pcs=pcs)
     name = cause.variable.lower()
-    if names_temperature(cause.variable, cause.dtype):
-        return ExtendedModel(cause, TemperatureShift(column=cause.variable, texture_pcs=pcs), generic)
     cov, _ = site_covariates(sites, texture_wide, exclude=exclude)
     mpd = find_mpd_column(cov)
+    if names_temperature(cause.variable, cause.dtype):
+        return ExtendedModel(cause, TemperatureShift(column=cause.variable, texture_pcs=pcs, decay_column=mpd), generic)
     if mpd is not None and cause.kind == "x_speed" and (cause.variable == mpd or mpd in cause.group or "macro" in name):
         return ExtendedModel(cause, DrainageIFI(mpd_column=mpd), generic, ViscoelasticFE())
     return ExtendedModel(cause, generic, None)

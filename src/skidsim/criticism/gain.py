@@ -261,8 +261,12 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
     measured curves of all sites with a permutation test of the temperatures
     (:func:`skidsim.criticism.recalibration.temperature_identifiability`), and per fold the T_r fitted on the
     training sections (median, deg C), the folds whose T_r stayed inside its bounds and the route chosen (curves,
-    or the shift of the texture model's prediction). ``why`` says why T_r is not identified (None where it is).
-    None for other extensions."""
+    or the shift of the texture model's prediction), the decay constant's texture slope of the all-sites fit
+    (``decay_slope``, log10 alpha per log10 mm of ``TemperatureShift.decay_column``; None without one), and how
+    precisely the sections pin T_r: the leave-one-section-out jackknife of the folds' T_r,
+    ``t_ref_c_jackknife_se = sqrt((k - 1)/k sum (T_j - mean T)^2)`` over the k folds (deg C), and the interval
+    ``t_ref_c_all_sites +- 1.96 se`` (``t_ref_c_interval_95``). ``why`` says why T_r is not identified (None where
+    it is). None for other extensions."""
     between = level_scopes.get("between-site")
     for ext, scopes, _ in results:
         if not isinstance(ext, TemperatureShift) or "held_out_sites" not in scopes or between is None:
@@ -271,6 +275,8 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
         if whole is None:
             return None
         folds = scopes["held_out_sites"]["extension"]["params_per_fold"]
+        t = np.array([f["t_ref_c"] for f in folds], dtype=float)
+        se = float(np.sqrt((len(t) - 1) / len(t) * np.sum((t - t.mean()) ** 2))) if len(t) > 1 else float("nan")
         return {
             "extension": "TemperatureShift",
             "parameter": "t_ref_c",
@@ -280,7 +286,10 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
             "perm_p": whole["perm_p"],
             "folds": len(folds),
             "identifiable_folds": int(sum(bool(f.get("wlf_identifiable")) for f in folds)),
-            "t_ref_c_median": float(np.median([f["t_ref_c"] for f in folds])),
+            "t_ref_c_median": float(np.median(t)),
+            "t_ref_c_jackknife_se": se,
+            "t_ref_c_interval_95": [whole["t_ref_c"] - 1.96 * se, whole["t_ref_c"] + 1.96 * se],
+            "decay_slope": whole.get("decay_slope"),
             "routes": {r: int(sum(f.get("route") == r for f in folds)) for r in ("curves", "prediction")},
         }
     return None

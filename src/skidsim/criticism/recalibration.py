@@ -31,6 +31,10 @@ from .scopes import Scope, centred_speed, site_mean, site_target, site_values
 
 #: Grid points of the profile of the WLF reference temperature over its bounds.
 WLF_GRID = 41
+#: Start values of the decay constant's slope g (log10 alpha per log10 mm of the decay column) in
+#: :func:`wlf_from_curves`, and the Nelder-Mead settings of (c0, g).
+DECAY_SLOPE_GRID = (-1.5, -0.75, 0.0, 0.75, 1.5)
+NELDER_MEAD = {"xatol": 1e-5, "fatol": 1e-12, "maxfev": 400}
 
 # ----------------------------------------------------------------------------------------------------------------
 # texture refit
@@ -110,6 +114,9 @@ def _after_temperature(
         # site's own temperature (the decay constants follow the temperature itself, not its texture-free part)
         Tr = site_values(cov, ext.column, scope.sites)
         alpha = 10.0 ** float(theta[2]) * ext.speed_factor(Tr, float(Tr[train].mean()), float(theta[0]))
+        if len(theta) > 6:  # the decay constant's texture term (theta[5] per log10 mm about theta[6])
+            lx = np.log10(site_values(cov, ext.decay_column, scope.sites))
+            alpha = alpha * 10.0 ** (float(theta[5]) * (lx - float(theta[6])))
         if len(theta) > 4:  # the law's b and c from the texture (coefficients theta[3], theta[4] on [1, PCs])
             X = refit_design(scope, cov, max(ext.texture_pcs, 0), None)
             bb, cc = X @ np.asarray(theta[3]), X @ np.asarray(theta[4])
@@ -212,7 +219,14 @@ def _curve_sse(V: np.ndarray, Y: np.ndarray, alpha: np.ndarray) -> float:
 
 
 def wlf_from_curves(
-    ext: TemperatureShift, T: np.ndarray, V: np.ndarray, Y: np.ndarray, bounds, n_perm: int = 0, seed: int = 0
+    ext: TemperatureShift,
+    T: np.ndarray,
+    V: np.ndarray,
+    Y: np.ndarray,
+    bounds,
+    n_perm: int = 0,
+    seed: int = 0,
+    x: np.ndarray | None = None,
 ) -> dict:
     """The WLF reference temperature T_r (deg C) from the sites' measured curves.
 
@@ -223,7 +237,12 @@ def wlf_from_curves(
     (the level and the vertical shift factor) and ``log10 alpha_i = c0 + log10 a_T(T_i; T_r) - log10 a_T(T_0;
     T_r)``, ``T_0`` the mean temperature, one reference decay constant ``c0`` for the campaign, C1 and C2
     universal: T_r is profiled over ``WLF_GRID`` points of ``bounds`` (c0 by a grid and a bounded scalar search at
-    each), then refined by a bounded scalar search.
+    each), then refined by a bounded scalar search. With ``x`` (per site, the centred log10 of
+    ``ext.decay_column``, :func:`decay_covariate`) the reference decay constant follows the texture too,
+    ``log10 alpha_i = c0 + g x_i + ...`` (the IFI speed constant grows with MPD, so the decay constants of a
+    campaign spread with its macrotexture whatever the temperature; without ``g`` that spread is noise against
+    which a narrow temperature range pins T_r poorly): ``(c0, g)`` by a grid and Nelder-Mead at each T_r, in the
+    model without the WLF term too; ``decay_slope`` is g (None without ``x``).
 
     ``identifiable``: the best T_r lies inside its bounds (at the "no effect" bound the curves show no speed shift)
     and, with ``n_perm > 0``, the WLF term's reduction of the squared error of the model without it
@@ -235,16 +254,7 @@ def wlf_from_curves(
     T0 = float(T.mean())
 
     def inner(shift):
-        def f(c0):
-            la = np.clip(c0 + shift, -4.0, 1.0)
-            return _curve_sse(V, Y, 10.0**la)
-
-        grid_c0 = np.linspace(-3.0, 0.5, 15)
-        vals_c0 = [f(c) for c in grid_c0]
-        m = int(np.argmin(vals_c0))
-        lo_c, hi_c = grid_c0[max(m - 1, 0)], grid_c0[min(m + 1, len(grid_c0) - 1)]
-        r = minimize_scalar(f, bounds=(lo_c, hi_c), method="bounded", options={"xatol": 1e-4})
-        return (float(r.fun), float(r.x)) if r.fun <= vals_c0[m] else (float(vals_c0[m]), float(grid_c0[m]))
+        return _decay_fit(V, Y, shift, x)[:2]
 
     def sse(tr):
         return inner(ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0])[0]
@@ -257,7 +267,7 @@ def wlf_from_curves(
     r = minimize_scalar(sse, bounds=(a, b), method="bounded", options={"xatol": 0.05})
     tr, best = (float(r.x), float(r.fun)) if r.fun <= vals[j] else (float(grid[j]), float(vals[j]))
     sse0 = inner(np.zeros(len(T)))[0]
-    c0 = inner(ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0])[1]
+    _, c0, g = _decay_fit(V, Y, ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0], x)
     p = None
     if n_perm > 0:
         coarse = np.linspace(lo, hi, 21)
@@ -273,7 +283,7 @@ def wlf_from_curves(
         d_obs = gain_of(T)
         d_perm = np.array([gain_of(rng.permutation(T)) for _ in range(n_perm)])
         p = float((1 + np.sum(d_perm >= d_obs * (1 - 1e-12))) / (1 + n_perm))
-    out = {"t_ref_c": tr, "log10_alpha_ref": c0, "sse": best, "sse_without": sse0, "perm_p": p}
+    out = {"t_ref_c": tr, "log10_alpha_ref": c0, "decay_slope": g, "sse": best, "sse_without": sse0, "perm_p": p}
     why = None
     if j == 0 or tr - lo < 1e-3 * (hi - lo):
         why = "the measured curves show no WLF speed shift between sites (T_r at its 'no effect' bound)"
@@ -288,6 +298,46 @@ def wlf_from_curves(
     if why:
         out["why"] = why
     return out
+
+
+def _decay_fit(V: np.ndarray, Y: np.ndarray, shift: np.ndarray, x: np.ndarray | None) -> tuple:
+    """``(sse, c0, g)`` of the curves ``Y_i ~ b_i + c_i exp(-alpha_i v)`` with ``log10 alpha_i = c0 + g x_i +
+    shift_i`` (:func:`wlf_from_curves`): c0 by a 15-point grid and a bounded scalar search without ``x`` (g None),
+    with ``x`` (c0, g) by a 15 x 5 grid and Nelder-Mead from its best point."""
+
+    def f(c0, g=0.0):
+        return _curve_sse(V, Y, 10.0 ** np.clip(c0 + shift + (0.0 if x is None else g * x), -4.0, 1.0))
+
+    grid_c0 = np.linspace(-3.0, 0.5, 15)
+    if x is None:
+        vals_c0 = [f(c) for c in grid_c0]
+        m = int(np.argmin(vals_c0))
+        lo_c, hi_c = grid_c0[max(m - 1, 0)], grid_c0[min(m + 1, len(grid_c0) - 1)]
+        r = minimize_scalar(f, bounds=(lo_c, hi_c), method="bounded", options={"xatol": 1e-4})
+        if r.fun <= vals_c0[m]:
+            return float(r.fun), float(r.x), None
+        return float(vals_c0[m]), float(grid_c0[m]), None
+    best = min((f(c, g), c, g) for c in grid_c0 for g in DECAY_SLOPE_GRID)
+    r = minimize(lambda p: f(p[0], p[1]), [best[1], best[2]], method="Nelder-Mead", options=NELDER_MEAD)
+    if r.fun <= best[0]:
+        return float(r.fun), float(r.x[0]), float(r.x[1])
+    return float(best[0]), float(best[1]), float(best[2])
+
+
+def decay_covariate(ext: TemperatureShift, cov: pd.DataFrame, sites: list, centre: np.ndarray | None = None):
+    """Per site of ``sites`` the log10 of ``ext.decay_column`` (mm) minus its mean over the sites where
+    ``centre`` (bool mask; None: all) is true: the ``x`` of :func:`wlf_from_curves`, and that mean (log10 mm).
+    ``(None, None)`` without a decay column or where it is missing, not finite or not positive at a site (the
+    campaign's one reference decay constant)."""
+    col = ext.decay_column
+    if col is None or col not in cov.columns:
+        return None, None
+    v = pd.to_numeric(cov.loc[sites, col], errors="coerce").to_numpy(float)
+    if not (np.isfinite(v).all() and (v > 0).all()):
+        return None, None
+    lx = np.log10(v)
+    mean = float(lx[centre].mean() if centre is not None else lx.mean())
+    return lx - mean, mean
 
 
 def ext_log10_shift(ext: TemperatureShift, T: np.ndarray, t_ref_c: float) -> np.ndarray:
@@ -320,7 +370,8 @@ def temperature_identifiability(ext: TemperatureShift, scope: Scope, cov: pd.Dat
     if curves is None:
         return None
     T = site_values(cov, ext.column, scope.sites)
-    return wlf_from_curves(ext, T, *curves, ext.t_ref_bounds_c(T), n_perm=n_perm, seed=0)
+    x, _ = decay_covariate(ext, cov, scope.sites)
+    return wlf_from_curves(ext, T, *curves, ext.t_ref_bounds_c(T), n_perm=n_perm, seed=0, x=x)
 
 
 def _recalibrate_temperature_between(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, train: np.ndarray):
@@ -332,13 +383,17 @@ def _recalibrate_temperature_between(ext: TemperatureShift, scope: Scope, cov: p
         return None
     V, Y = curves
     T = site_values(cov, ext.column, scope.sites)
-    fit = wlf_from_curves(ext, T[train], V[train], Y[train], ext.t_ref_bounds_c(T))
+    x, x_mean = decay_covariate(ext, cov, scope.sites, centre=train)
+    fit = wlf_from_curves(ext, T[train], V[train], Y[train], ext.t_ref_bounds_c(T), x=None if x is None else x[train])
     fit["n_sites"] = int(train.sum())
     alpha_ref = fit["log10_alpha_ref"]
     params = {"t_ref_c": fit["t_ref_c"], "level_per_c": float(ext.level_per_c), "log10_alpha_ref": alpha_ref}
+    decay = [] if x is None else [fit["decay_slope"], x_mean]  # theta[5:7] of after_physical
     # the law's b and c of every training site at its WLF decay constant, regressed on the texture
     Ttr = T[train]
     alpha_tr = 10.0**alpha_ref * ext.speed_factor(Ttr, float(Ttr.mean()), fit["t_ref_c"])
+    if x is not None:
+        alpha_tr = alpha_tr * 10.0 ** (fit["decay_slope"] * x[train])
     b_tr, c_tr, _ = _curve_bc(V[train], Y[train], alpha_tr)
     X = refit_design(scope, cov, max(ext.texture_pcs, 0), None)
     beta_b = np.linalg.lstsq(X[train], b_tr, rcond=None)[0]
@@ -349,11 +404,14 @@ def _recalibrate_temperature_between(ext: TemperatureShift, scope: Scope, cov: p
         y = scope.rows["measured"].to_numpy(float)
 
         def obj(th):
-            a = after_physical(ext, scope, cov, train, [fit["t_ref_c"], float(np.ravel(th)[0]), alpha_ref, *law])
+            theta = [fit["t_ref_c"], float(np.ravel(th)[0]), alpha_ref, *law, *decay]
+            a = after_physical(ext, scope, cov, train, theta)
             return float(np.sum((a[rows_tr] - y[rows_tr]) ** 2))
 
         params["level_per_c"] = _minimise_one(obj, ext.level_bounds_per_c)[0]
     params.update({f"wlf_{key}": v for key, v in fit.items() if key != "t_ref_c"})
+    if x is not None:
+        params["decay_slope"], params["decay_log10_mean"] = decay
     params["t_ref_source"] = "measured curves (decay constants across sites)"
     params["law_b_beta"], params["law_c_beta"] = law
     return params
@@ -533,6 +591,8 @@ def predict_extended(ext, params: dict, scope: Scope, cov: pd.DataFrame, train: 
             theta = [params["t_ref_c"], params.get("level_per_c", ext.level_per_c), params["log10_alpha_ref"]]
             if "law_b_beta" in params:
                 theta += [params["law_b_beta"], params["law_c_beta"]]
+                if "decay_slope" in params:
+                    theta += [params["decay_slope"], params["decay_log10_mean"]]
             return after_physical(ext, scope, cov, train, theta)
         return after_physical(ext, scope, cov, train, [params[k] for k in _physical_params(ext, scope, cov)[0]])
     if isinstance(ext, TextureModelTerm):

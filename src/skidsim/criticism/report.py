@@ -34,6 +34,13 @@ def _fmt_ci(d, key):
     return f"{d[key]:.4f} [{lo:.4f}, {hi:.4f}]"
 
 
+def _interval(iv) -> str:
+    """``[lo, hi]`` to one decimal, or ``n/a`` (missing or not finite)."""
+    if not iv or not all(np.isfinite(x) for x in iv):
+        return "n/a"
+    return f"[{iv[0]:.1f}, {iv[1]:.1f}]"
+
+
 def _fmt_group(group, n_show: int = 6) -> str:
     """A correlated group for report.md: up to ``n_show`` names and the count of the rest (causes.json has all)."""
     g = list(group)
@@ -124,7 +131,8 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
     if ident:
         state = (
             f"identified (T_r {ident['t_ref_c_all_sites']:.1f} deg C over all sites, permutation p "
-            f"{ident['perm_p']:.2g}; median over folds {ident['t_ref_c_median']:.1f} deg C)"
+            f"{ident['perm_p']:.2g}; median over folds {ident['t_ref_c_median']:.1f} deg C; 95 % interval over "
+            f"the sections (jackknife) {_interval(ident.get('t_ref_c_interval_95'))} deg C)"
             if ident.get("identifiable")
             else f"not identifiable: {ident.get('why')}"
         )
