@@ -34,7 +34,7 @@ WLF_GRID = 41
 #: Start values of the decay constant's slope g (log10 alpha per log10 mm of the decay column) in
 #: :func:`wlf_from_curves`, and the Nelder-Mead settings of (c0, g).
 DECAY_SLOPE_GRID = (-1.5, -0.75, 0.0, 0.75, 1.5)
-NELDER_MEAD = {"xatol": 1e-5, "fatol": 1e-12, "maxfev": 400}
+NELDER_MEAD = {"xatol": 1e-4, "fatol": 1e-10, "maxfev": 200}
 
 # ----------------------------------------------------------------------------------------------------------------
 # texture refit
@@ -248,7 +248,8 @@ def wlf_from_curves(
     and, with ``n_perm > 0``, the WLF term's reduction of the squared error of the model without it
     (``log10 alpha_i = c0``) is significant at 0.05 against ``n_perm`` permutations of the temperatures over the
     sites (seeded; profile on a 21-point grid for observed and permuted alike; the sites' own scatter of the
-    decay constant is the noise, not the points'). Returns t_ref_c, log10_alpha_ref, sse, sse_without (mu^2),
+    decay constant is the noise, not the points'; with ``x`` the slope g held at its value in the model without
+    the WLF term). Returns t_ref_c, log10_alpha_ref, sse, sse_without (mu^2),
     perm_p (None without permutations), identifiable and, when not identifiable, ``why``."""
     T = np.asarray(T, float)
     T0 = float(T.mean())
@@ -271,12 +272,16 @@ def wlf_from_curves(
     p = None
     if n_perm > 0:
         coarse = np.linspace(lo, hi, 21)
+        # the decay slope held at the model without the WLF term (the null model's nuisance), as an offset
+        offset = 0.0 if x is None else _decay_fit(V, Y, np.zeros(len(T)), x)[2] * x
+        sse_null = _decay_fit(V, Y, np.zeros(len(T)) + offset, None)[0]
 
         def gain_of(temps):
             t0 = float(temps.mean())
             ref = np.array([t0])
-            return sse0 - min(
-                inner(ext_log10_shift(ext, temps, g) - ext_log10_shift(ext, ref, g)[0])[0] for g in coarse
+            return sse_null - min(
+                _decay_fit(V, Y, ext_log10_shift(ext, temps, g) - ext_log10_shift(ext, ref, g)[0] + offset, None)[0]
+                for g in coarse
             )
 
         rng = np.random.default_rng(seed)
@@ -302,8 +307,9 @@ def wlf_from_curves(
 
 def _decay_fit(V: np.ndarray, Y: np.ndarray, shift: np.ndarray, x: np.ndarray | None) -> tuple:
     """``(sse, c0, g)`` of the curves ``Y_i ~ b_i + c_i exp(-alpha_i v)`` with ``log10 alpha_i = c0 + g x_i +
-    shift_i`` (:func:`wlf_from_curves`): c0 by a 15-point grid and a bounded scalar search without ``x`` (g None),
-    with ``x`` (c0, g) by a 15 x 5 grid and Nelder-Mead from its best point."""
+    shift_i`` (:func:`wlf_from_curves`): c0 by a 15-point grid and a bounded scalar search without ``x`` (g None);
+    with ``x`` c0 by the grid at g = 0, then g on :data:`DECAY_SLOPE_GRID` at that c0, then Nelder-Mead on (c0, g)
+    from the best of these."""
 
     def f(c0, g=0.0):
         return _curve_sse(V, Y, 10.0 ** np.clip(c0 + shift + (0.0 if x is None else g * x), -4.0, 1.0))
@@ -317,7 +323,8 @@ def _decay_fit(V: np.ndarray, Y: np.ndarray, shift: np.ndarray, x: np.ndarray | 
         if r.fun <= vals_c0[m]:
             return float(r.fun), float(r.x), None
         return float(vals_c0[m]), float(grid_c0[m]), None
-    best = min((f(c, g), c, g) for c in grid_c0 for g in DECAY_SLOPE_GRID)
+    c_best = min((f(c), c) for c in grid_c0)[1]
+    best = min((f(c_best, g), c_best, g) for g in DECAY_SLOPE_GRID)
     r = minimize(lambda p: f(p[0], p[1]), [best[1], best[2]], method="Nelder-Mead", options=NELDER_MEAD)
     if r.fun <= best[0]:
         return float(r.fun), float(r.x[0]), float(r.x[1])
