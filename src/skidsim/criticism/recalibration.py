@@ -246,10 +246,10 @@ def wlf_from_curves(
 
     ``identifiable``: the best T_r lies inside its bounds (at the "no effect" bound the curves show no speed shift)
     and, with ``n_perm > 0``, the WLF term's reduction of the squared error of the model without it
-    (``log10 alpha_i = c0``) is significant at 0.05 against ``n_perm`` permutations of the temperatures over the
-    sites (seeded; profile on a 21-point grid for observed and permuted alike; the sites' own scatter of the
-    decay constant is the noise, not the points'; with ``x`` the slope g held at its value in the model without
-    the WLF term). Returns t_ref_c, log10_alpha_ref, sse, sse_without (mu^2),
+    (``log10 alpha_i = c0``, or ``c0 + g x_i``) is significant at 0.05 against ``n_perm`` permutations of the
+    temperatures over the sites (seeded; profile on a 21-point grid for observed and permuted alike; the sites'
+    own scatter of the decay constant is the noise, not the points'; with ``x`` the slope g held at its value in
+    the model without the WLF term). Returns t_ref_c, log10_alpha_ref, decay_slope, sse, sse_without (mu^2),
     perm_p (None without permutations), identifiable and, when not identifiable, ``why``."""
     T = np.asarray(T, float)
     T0 = float(T.mean())
@@ -280,8 +280,8 @@ def wlf_from_curves(
             t0 = float(temps.mean())
             ref = np.array([t0])
             return sse_null - min(
-                _decay_fit(V, Y, ext_log10_shift(ext, temps, g) - ext_log10_shift(ext, ref, g)[0] + offset, None)[0]
-                for g in coarse
+                _decay_fit(V, Y, ext_log10_shift(ext, temps, t_r) - ext_log10_shift(ext, ref, t_r)[0] + offset, None)[0]
+                for t_r in coarse
             )
 
         rng = np.random.default_rng(seed)
