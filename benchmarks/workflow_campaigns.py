@@ -66,8 +66,8 @@ KINDS = (
     "texture_speed",
     "texture_measure",
 )
-#: Not in the default list: the texture x speed effect on the chips generator's campaigns (below).
-#: The rate campaigns' column effects hidden in a generator's campaign (below), as ``<kind>_<generator>``.
+#: The rate campaigns' column effects hidden in a generator's campaign (below), as ``<kind>_<generator>``, and the
+#: column each reads.
 COLUMN_HIDDEN = {
     "section_column": "cum_traffic_msa",
     "site_column": "station_ft",
@@ -75,6 +75,7 @@ COLUMN_HIDDEN = {
     "categorical_speed": "aggregate",
 }
 GENERATOR_COLUMN_KINDS = tuple(f"{k}_{g}" for g in ("chips", "spectral") for k in COLUMN_HIDDEN)
+#: Not in the default list (module docstring).
 EXTRA_KINDS = (
     "texture_speed_chips",
     "section_column_36",
