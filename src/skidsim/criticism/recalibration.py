@@ -115,7 +115,7 @@ def _after_temperature(
         Tr = site_values(cov, ext.column, scope.sites)
         alpha = 10.0 ** float(theta[2]) * ext.speed_factor(Tr, float(Tr[train].mean()), float(theta[0]))
         if len(theta) > 6:  # the decay constant's texture term (theta[5] per log10 mm about theta[6])
-            lx = np.log10(site_values(cov, ext.decay_column, scope.sites))
+            lx = _log10_decay_column(ext, cov, scope.sites)
             alpha = alpha * 10.0 ** (float(theta[5]) * (lx - float(theta[6])))
         if len(theta) > 4:  # the law's b and c from the texture (coefficients theta[3], theta[4] on [1, PCs])
             X = refit_design(scope, cov, max(ext.texture_pcs, 0), None)
@@ -267,13 +267,14 @@ def wlf_from_curves(
     a, b = grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)]
     r = minimize_scalar(sse, bounds=(a, b), method="bounded", options={"xatol": 0.05})
     tr, best = (float(r.x), float(r.fun)) if r.fun <= vals[j] else (float(grid[j]), float(vals[j]))
-    sse0 = inner(np.zeros(len(T)))[0]
+    null = _decay_fit(V, Y, np.zeros(len(T)), x)  # the model without the WLF term: (sse, c0, g)
+    sse0 = null[0]
     _, c0, g = _decay_fit(V, Y, ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0], x)
     p = None
     if n_perm > 0:
         coarse = np.linspace(lo, hi, 21)
         # the decay slope held at the model without the WLF term (the null model's nuisance), as an offset
-        offset = 0.0 if x is None else _decay_fit(V, Y, np.zeros(len(T)), x)[2] * x
+        offset = 0.0 if x is None else null[2] * x
         sse_null = _decay_fit(V, Y, np.zeros(len(T)) + offset, None)[0]
 
         def gain_of(temps):
@@ -331,18 +332,26 @@ def _decay_fit(V: np.ndarray, Y: np.ndarray, shift: np.ndarray, x: np.ndarray | 
     return float(best[0]), float(best[1]), float(best[2])
 
 
+def _log10_decay_column(ext: TemperatureShift, cov: pd.DataFrame, sites: list) -> np.ndarray | None:
+    """log10 of ``ext.decay_column`` (mm) per site of ``sites``; None without a decay column or where it is
+    missing, not finite or not positive at a site."""
+    col = ext.decay_column
+    if col is None or col not in cov.columns:
+        return None
+    v = pd.to_numeric(cov.loc[sites, col], errors="coerce").to_numpy(float)
+    if not (np.isfinite(v).all() and (v > 0).all()):
+        return None
+    return np.log10(v)
+
+
 def decay_covariate(ext: TemperatureShift, cov: pd.DataFrame, sites: list, centre: np.ndarray | None = None):
     """Per site of ``sites`` the log10 of ``ext.decay_column`` (mm) minus its mean over the sites where
     ``centre`` (bool mask; None: all) is true: the ``x`` of :func:`wlf_from_curves`, and that mean (log10 mm).
     ``(None, None)`` without a decay column or where it is missing, not finite or not positive at a site (the
     campaign's one reference decay constant)."""
-    col = ext.decay_column
-    if col is None or col not in cov.columns:
+    lx = _log10_decay_column(ext, cov, sites)
+    if lx is None:
         return None, None
-    v = pd.to_numeric(cov.loc[sites, col], errors="coerce").to_numpy(float)
-    if not (np.isfinite(v).all() and (v > 0).all()):
-        return None, None
-    lx = np.log10(v)
     mean = float(lx[centre].mean() if centre is not None else lx.mean())
     return lx - mean, mean
 
