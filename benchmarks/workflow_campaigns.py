@@ -34,6 +34,11 @@ functions, with only the seed changed (the tests use seed 7):
   and section factors, the decoy columns). Right: nothing named, a cause of the category ``texture model`` (the
   generators' PIARC/IFI and Rado laws are not the texture model's form) or ``section (unexplained)`` (the random
   section factors are a section effect no column carries).
+* ``texture_only_chips``, ``texture_only_spectral`` (not in the default list): the same without the generator's
+  random section factors: friction depends on the texture alone (and the random site factors), the issue's null.
+  Right: nothing named or a cause of the category ``texture model`` or ``texture parameter`` (the PIARC/IFI speed
+  constant follows MPD: a texture x speed effect); ``section (unexplained)`` or a sites.csv column is a false
+  naming, and so, strictly, is the within-site functional form.
 * ``section_column_chips``, ``site_column_chips``, ``temperature_chips``, ``categorical_speed_chips`` and the same
   with ``_spectral`` (not in the default list): the rate campaigns' effects of a sites.csv column
   (tests/diagnosis_rate_campaigns.py: traffic polishing by ``cum_traffic_msa``, the station ``station_ft``, the WLF
@@ -82,6 +87,8 @@ EXTRA_KINDS = (
     "section_column_rate_size",
     "none_chips",
     "none_spectral",
+    "texture_only_chips",
+    "texture_only_spectral",
 ) + GENERATOR_COLUMN_KINDS
 
 
@@ -121,6 +128,8 @@ def run_kind(kind: str, seed: int, workdir: Path) -> dict:
         return run_texture_campaign(workdir, "chips", "hysteresis", 0.8, seed=seed)
     if kind in ("none_chips", "none_spectral"):
         return run_texture_campaign(workdir, kind.removeprefix("none_"), None, 0.0, seed=seed)
+    if kind in ("texture_only_chips", "texture_only_spectral"):
+        return run_texture_campaign(workdir, kind.rsplit("_", 1)[1], None, 0.0, seed=seed, section_factors=False)
     if kind in GENERATOR_COLUMN_KINDS:
         column_kind, generator = kind.rsplit("_", 1)
         return run_texture_campaign(workdir, generator, None, 0.0, seed=seed, column_kind=column_kind)
@@ -133,6 +142,8 @@ def is_right(kind: str, top: dict | None) -> bool:
         return top is None
     if kind in ("none_chips", "none_spectral"):  # the generator's own friction model of the texture: the texture model
         return top is None or top.get("category") in ("texture model", "section (unexplained)")
+    if kind in ("texture_only_chips", "texture_only_spectral"):  # no section factors either: a texture cause only
+        return top is None or top.get("category") in ("texture model", "texture parameter")
     if top is None:
         return False
     var, group = str(top["variable"]), list(top.get("group") or [])

@@ -57,14 +57,21 @@ DECOYS = (
 
 
 def run_texture_campaign(
-    workdir: Path, generator: str, effect: str | None, kappa: float, seed: int = 7, column_kind: str | None = None
+    workdir: Path,
+    generator: str,
+    effect: str | None,
+    kappa: float,
+    seed: int = 7,
+    column_kind: str | None = None,
+    section_factors: bool = True,
 ) -> dict:
     """Write the campaign (36 sites, the hidden effect, decoy columns), run the workflow to the diagnosis, return
     causes.json and gain.json. ``column_kind`` (one of :data:`diagnosis_rate_campaigns.COLUMN_KINDS`, with
     ``effect`` None): instead of a texture effect, the rate campaigns' effect of a sites.csv column is hidden in the
     DFT traces (:func:`diagnosis_rate_campaigns.hide_column_effect`), the generator's random section factors are
     off (one hidden effect per campaign), and for ``temperature`` the rate campaigns' temperature_c (18-22 deg C per
-    section) replaces the generator's."""
+    section) replaces the generator's. ``section_factors`` False turns the generator's random section factors off
+    without a column effect: friction then depends on the texture alone (and the random site factors)."""
     from skidsim.generators import write_campaign
 
     camp = workdir / "campaign"
@@ -75,7 +82,7 @@ def run_texture_campaign(
         "seed": seed,
         "friction": {"hidden_effect": effect, "hidden_kappa": kappa},
     }
-    if column_kind is not None:
+    if column_kind is not None or not section_factors:
         over["friction"].update(section_level_sd=0.0, section_sp_sd=0.0)
     write_campaign(camp, generator, over, truth_dir=workdir / "truth")
     sites = pd.read_csv(camp / "sites.csv")
