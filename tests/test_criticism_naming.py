@@ -492,14 +492,21 @@ def test_a_texture_column_in_the_span_of_the_prediction_terms_has_no_between_sit
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def _section_level(seed: int, effect: str):
+def _section_level(seed: int, effect: str, texture: str | None = None):
     """One between-site level of 36 sites in 12 sections of 3 with a 4-level section column `aggregate` (3 sections
     per level) and a 2-level decoy `binder`; residual speed profiles (6 bins) hold `effect`: "aggregate" (its
-    'limestone' sections lose 0.03 mu at low speed), or "latent" (a random speed slope per section, no column)."""
+    'limestone' sections lose 0.03 mu at low speed), or "latent" (a random speed slope per section, no column).
+    ``texture``: the texture model's member of the leading texture PCs is passed to the test, a design drawn per
+    section (plus a little per site); "misfit" adds a speed slope along it to the residual (the texture model's
+    misfit, clustered by section as the texture designs are), "unrelated" adds nothing."""
     from skidsim.criticism.covariates import CandidateRoles, candidate_set
     from skidsim.criticism.screening import LevelData, covariate_tests, level_context, section_rest_tests
+    from skidsim.criticism.texture_candidate import PCS_MEMBER, TextureMember
 
     rng = np.random.default_rng(seed)
+    tex_rng = np.random.default_rng(1000 + seed)
+    design = tex_rng.normal(size=(12, 3))[np.repeat(np.arange(12), 3)] + 0.2 * tex_rng.normal(size=(36, 3))
+    design = (design - design.mean(axis=0)) / design.std(axis=0)
     sec = np.repeat(np.arange(12), 3)
     agg = np.array(["limestone", "granite", "basalt", "gritstone"])[rng.permutation(12) % 4][sec]
     binder = np.array(["PG64-22", "PG76-22"])[rng.permutation(12) % 2][sec]
@@ -511,11 +518,14 @@ def _section_level(seed: int, effect: str):
         R -= 0.03 * (agg == "limestone")[:, None] * np.clip((60 - bins) / 40, 0, 1)[None, :]
     else:
         R += 0.01 * rng.normal(size=12)[sec][:, None] * (bins - bins.mean())[None, :] / 25
+    if texture == "misfit":
+        R += 0.01 * (design @ [1.0, 0.5, -0.5])[:, None] * (bins - bins.mean())[None, :] / 25
     cands = candidate_set(sites, None, CandidateRoles(), 0.8)
     data = LevelData("between-site", list(sites["site"]), bins, R)
     ctx = level_context(data, cands, 1999, np.random.default_rng(seed + 1))
     tests = [t for t in covariate_tests(ctx, None) if t.kind == "x_speed"]
-    section_rest_tests(ctx, tests)
+    members = [TextureMember(PCS_MEMBER, "the leading texture PCs", design)] if texture else []
+    section_rest_tests(ctx, tests, members=members)
     return ctx, {t.variable: t for t in tests}
 
 
@@ -536,6 +546,27 @@ def test_the_section_effect_left_beyond_a_column():
     assert sum(t["aggregate"].section_rest_p <= 0.05 for t in carried) <= 3
     assert all(t["binder"].section_rest_p <= 0.001 for t in carried)
     assert all(_section_level(seed, "latent")[1]["aggregate"].section_rest_p <= 0.01 for seed in range(20))
+
+
+def test_the_section_effect_left_beyond_a_column_and_the_texture_pcs():
+    """Between sites the reduced model of `section_rest_tests` is the column and the texture model's member of the
+    leading texture PCs: where the column carries its effect and the texture model's misfit (along the PCs,
+    clustered by section) is the rest, nothing is left beyond both (p <= 0.05 in at most 3 of 20 seeds), while
+    without the member that misfit is a section effect left beyond the column (p <= 0.01 in every seed); a section
+    latent that the texture does not carry is still left beyond both (p <= 0.05 in every seed, <= 0.01 in 18 of
+    20: the member's 3 columns take 3 of the 11 degrees of freedom between the sections)."""
+    misfit = [_section_level(seed, "aggregate", "misfit")[1]["aggregate"] for seed in range(20)]
+    assert sum(t.section_rest_p <= 0.05 for t in misfit) <= 3, [t.section_rest_p for t in misfit]
+    from skidsim.criticism.screening import section_rest_tests
+
+    without = []
+    for seed in range(20):
+        ctx, t = _section_level(seed, "aggregate", "misfit")
+        section_rest_tests(ctx, [t["aggregate"]])
+        without.append(t["aggregate"].section_rest_p)
+    assert all(p <= 0.01 for p in without), without
+    latent = [_section_level(seed, "latent", "unrelated")[1]["aggregate"].section_rest_p for seed in range(20)]
+    assert all(p <= 0.05 for p in latent) and sum(p <= 0.01 for p in latent) >= 18, latent
 
 
 def test_rule_3b_names_the_column_that_carries_a_section_effect_without_its_own_significance():

@@ -35,7 +35,7 @@ from .fdr import adjust, family_sizes, permutation_count
 from .options import DiagnosisOptions
 from .permutations import nested_permutations, perm_stats, permutation_p, site_permutations
 from .residuals import LEVELS, level_matrix, require_columns, texture_model_shape
-from .texture_candidate import TextureMember, centred_basis, member_basis, section_share, texture_members
+from .texture_candidate import PCS_MEMBER, TextureMember, centred_basis, member_basis, section_share, texture_members
 
 
 @dataclass
@@ -402,7 +402,11 @@ def texture_model_basis(ctx: LevelContext, cands: CandidateSet, lead, members: l
 
 
 def section_rest_tests(
-    ctx: LevelContext, tests: list[CandidateTest], chunk: int = 512, F: np.ndarray | None = None
+    ctx: LevelContext,
+    tests: list[CandidateTest],
+    chunk: int = 512,
+    F: np.ndarray | None = None,
+    members: list[TextureMember] = (),
 ) -> None:
     """For every section-level column (not section identity; residual test) of one level: is a section effect left
     beyond the column? The statistic is the between-section sum of squares of the tested residual net of the
@@ -410,7 +414,12 @@ def section_rest_tests(
     its p-value (``section_rest_p``) is Freedman & Lane (1983): the reduced model's residuals ``(I - Q Q') Y``
     permuted over the sites by section identity's own free site permutations (no new draws; the null is no
     section effect beyond the column, under which the sites are exchangeable apart from the column's groups).
-    Used by the naming rule of a section effect (:func:`skidsim.criticism.causes.section_rule`, rule 3b). Between
+    Between sites, where ``members`` holds the texture model's member of the leading texture PCs
+    (:data:`~skidsim.criticism.texture_candidate.PCS_MEMBER`), the reduced model is the column and that member
+    together: the texture designs of a campaign are drawn per section, so the texture model's misfit clusters by
+    section too, and what the column leaves that the texture PCs carry is the texture model's, not a section
+    effect no column explains. Used by the naming rule of a section effect
+    (:func:`skidsim.criticism.causes.section_rule`, rule 3b). Between
     sites with a texture model ``F`` (:func:`texture_model_basis`, ``[1, ...]``) and the measured curves, section
     identity is tested too: its ``section_rest_p`` is the p of a section effect in the measured curves net of
     ``F`` (:func:`rest_residuals`; the reduced model ``F``, the same free site permutations), which rule 6 of the
@@ -422,6 +431,9 @@ def section_rest_tests(
     G /= np.sqrt(G.sum(axis=0))
     P = ctx.perm_site.shape[0]
     rest = rest_residuals(ctx, F)
+    pcs = None
+    if ctx.data.level == "between-site":
+        pcs = next((m for m in members if m.name == PCS_MEMBER), None)
     if rest is not None:
         Fq = centred_basis(F[:, 1:])
         Fq = np.c_[np.full(ctx.n, 1.0 / np.sqrt(ctx.n)), Fq]  # [1, F beyond its intercept], orthonormal
@@ -440,6 +452,8 @@ def section_rest_tests(
         Y = ctx.Ys[t.kind]
         if is_id:  # the reduced model F (rest[kind] is orthogonal to F already)
             Y, Q = rest[t.kind], Fq
+        elif pcs is not None:  # the column and the texture PCs
+            Q = centred_basis(np.c_[Q, pcs.design])
         R = Y - Q @ (Q.T @ Y)
         A = G.T @ R
         T = float((A * A).sum())
@@ -633,7 +647,7 @@ def screen_candidates(
         cov_tests = covariate_tests(ctx, texture_adjusted(ctx, cands, texture_pc_scores))
         section_shares(ctx, cov_tests)
         members = _members(ctx, cands, texture_pc_scores, texture_lead)
-        section_rest_tests(ctx, cov_tests, F=texture_model_basis(ctx, cands, texture_lead, members))
+        section_rest_tests(ctx, cov_tests, F=texture_model_basis(ctx, cands, texture_lead, members), members=members)
         tests += cov_tests
         tests += texture_model_tests(ctx, members)
         if ctx.data.level == "between-site":

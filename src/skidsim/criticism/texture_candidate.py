@@ -44,6 +44,8 @@ from .adjustment import basis, lead_design
 TEXTURE_MODEL = "texture_model"
 #: Columns of every member's design (one scale for the max-statistic).
 MEMBER_DF = 3
+#: The name of the member of the leading texture principal components (beyond the prediction model's terms).
+PCS_MEMBER = f"texture PCs 1-{MEMBER_DF}"
 
 
 @dataclass(frozen=True)
@@ -167,7 +169,7 @@ def texture_members(
         D = np.column_stack([_std(pcs[:, j]) for j in range(MEMBER_DF)])
         members.append(
             TextureMember(
-                f"texture PCs 1-{MEMBER_DF}",
+                PCS_MEMBER,
                 "texture measures the prediction model leaves out (the leading texture principal components)",
                 D,
             )
