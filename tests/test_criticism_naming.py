@@ -841,3 +841,30 @@ def test_a_spectral_null_campaign_does_not_name_the_misfit_of_the_texture_model(
     assert not sec.significant and sec.label == TEXTURE_MISFIT
     top = cr.named_cause(causes)
     assert top is None or top.source == "texture_model", (top.variable, top.level, top.kind, top.label)
+
+
+def test_the_report_says_what_a_column_named_by_rule_3b_leaves_nothing_beyond():
+    """report.md of a column named by rule 3b: between sites nothing is left beyond the column and the texture
+    model's leading texture PCs (the reduced model of `section_rest_tests` there); within sites beyond the column."""
+    from skidsim.criticism.report import _named_lines
+
+    top = {
+        "variable": "aggregate",
+        "label": "",
+        "level": "between-site",
+        "kind": "x_speed",
+        "category": "sites.csv column",
+        "group": [],
+        "effect": 0.01,
+        "cv_gain": 0.2,
+        "p_value": 0.021,
+        "p_adjusted": 0.14,
+        "texture_pcs": -1,
+        "explains": "section (between-site, x_speed)",
+        "section_share": 0.72,
+        "section_rest_p": 0.13,
+    }
+    between = "\n".join(_named_lines(top, {}))
+    within = "\n".join(_named_lines(dict(top, level="within-site"), {}))
+    assert "beyond it and the texture model's leading texture PCs (p = 0.13)" in between
+    assert "beyond it (p = 0.13)" in within and "texture PCs" not in within

@@ -65,7 +65,8 @@ class Cause:
     the same for the site means (between sites); ``section_id``: the candidate is section identity; ``label``:
     what the report names (``section (unexplained)``, ``TEXTURE_MISFIT``, or the texture model in words; empty:
     the variable);
-    ``section_rest_p``: for a section-level column, the permutation p of the section effect left beyond it; for
+    ``section_rest_p``: for a section-level column, the permutation p of the section effect left beyond it (between
+    sites beyond it and the texture model's member of the leading texture PCs); for
     section identity between sites, the p of a section effect in the measured curves beyond a quadratic texture
     model in the prediction model's terms (:func:`skidsim.criticism.screening.section_rest_tests`; NaN
     elsewhere); ``explains``: the section effect (``section (<level>, <kind>)``) a section-level column is named
@@ -545,7 +546,8 @@ def section_explanations(causes: list[Cause], fdr: float, share_min: float = SEC
     * its own exact permutation test over the sections (the nested permutations) has ``p_value <= fdr``, and it
       predicts held-out sections (``cv_gain > 0``);
     * no section effect is left beyond it: ``section_rest_p > fdr``
-      (:func:`skidsim.criticism.screening.section_rest_tests`).
+      (:func:`skidsim.criticism.screening.section_rest_tests`; between sites beyond it and the texture model's
+      member of the leading texture PCs, whose misfit clusters by section through the per-section textures).
 
     Why: S is the discovery (its p_adjusted passed the false-discovery control); the column is its description.
     With 12 sections, a column whose one level of 3 sections carries the effect cannot reach a permutation p below

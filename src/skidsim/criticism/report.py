@@ -114,11 +114,13 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
             "",
         ]
     elif top.get("explains"):
+        # between sites the rest is tested net of the column and the texture model's leading texture PCs
+        rest_beyond = " and the texture model's leading texture PCs" if top.get("level") == "between-site" else ""
         lines += [
             f"Named as the explanation of the significant `{top['explains']}` effect (rule 3b of the naming rule): "
             f"it explains {top['section_share']:.0%} of it, its own permutation test over the sections has p = "
             f"{top['p_value']:.2g} (p_adj above fdr over the section-level columns), and no section effect is left "
-            f"beyond it (p = {top['section_rest_p']:.2g}).",
+            f"beyond it{rest_beyond} (p = {top['section_rest_p']:.2g}).",
             "",
         ]
     lines += [
