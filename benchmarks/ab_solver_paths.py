@@ -14,12 +14,10 @@ agrees (largest relative difference).
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
-import subprocess
-import sys
 from pathlib import Path
+
+from ab_validation_batch import run_child  # benchmarks/ is the script's directory, first on sys.path
 
 CHILD = r"""
 import json, time
@@ -54,12 +52,6 @@ print(json.dumps(out))
 """
 
 
-def run_child(checkout: Path) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(checkout / "src"), OMP_NUM_THREADS="1")
-    done = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--old", type=Path, required=True, help="checkout of the older commit")
@@ -69,7 +61,7 @@ def main() -> None:
     got = {"old": [], "new": []}
     for _ in range(a.repeats):
         for side in ("old", "new"):
-            got[side].append(run_child(getattr(a, side)))
+            got[side].append(run_child(getattr(a, side), CHILD))
     print(f"CPU s per campaign FE run, median of {a.repeats} alternating fresh interpreters per checkout")
     for case in got["new"][0]:
         old = statistics.median(r[case]["single_s"] for r in got["old"])

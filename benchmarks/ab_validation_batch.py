@@ -47,12 +47,16 @@ print(json.dumps(out))
 """
 
 
-def run(checkout: Path, results: str, config: str, sites: list[str]) -> dict:
+def run_child(checkout: Path, child: str, *args: str) -> dict:
+    """Run the script ``child`` with ``args`` in a fresh interpreter whose ``PYTHONPATH`` starts with
+    ``checkout``'s ``src`` (one BLAS thread); return the JSON object of its last line of output."""
     env = dict(os.environ, PYTHONPATH=str(checkout / "src"), OMP_NUM_THREADS="1")
-    p = subprocess.run(
-        [sys.executable, "-c", CHILD, results, config, *sites], env=env, capture_output=True, text=True, check=True
-    )
+    p = subprocess.run([sys.executable, "-c", child, *args], env=env, capture_output=True, text=True, check=True)
     return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def run(checkout: Path, results: str, config: str, sites: list[str]) -> dict:
+    return run_child(checkout, CHILD, results, config, *sites)
 
 
 def main(argv=None) -> None:
