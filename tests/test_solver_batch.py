@@ -156,6 +156,32 @@ def test_batch_of_one_law_and_inputs():
         simulate_batch(PAV, [20.0, 40.0, 60.0], [LAW, LAW], cfg)
 
 
+def test_members_with_equal_laws_share_one_preload(monkeypatch):
+    """The preload does not see the test speed: the members with equal laws (the same object or an equal copy) are
+    preloaded once and the others copy their twin's state; each member is still its single run bit for bit, with
+    the Prony history carried through the copy."""
+    from skidsim.solver import explicit
+
+    preloaded = []
+    real = explicit._preload
+
+    def counting(m, b, out, clock):
+        preloaded.append(b.ids.tolist())
+        return real(m, b, out, clock)
+
+    monkeypatch.setattr(explicit, "_preload", counting)
+    cfg = SolverConfig(**BASE, prony_g=(0.3,), prony_tau_s=(2e-5,))
+    other = ExponentialDecay(0.6, 0.3, 0.2)
+    speeds = [20.0, 60.0, 40.0, 30.0, 50.0]
+    laws = [LAW, other, ExponentialDecay(LAW.mu_s, LAW.mu_k, LAW.alpha), LAW, other]
+    results = simulate_batch(PAV, speeds, laws, cfg)
+    assert preloaded == [[0, 1]]
+    _assert_same_as_single(results, PAV, speeds, laws, cfg)
+    preloaded.clear()
+    simulate_batch(PAV, [20.0, 40.0], [LAW, other], cfg)
+    assert preloaded == [[0, 1]]
+
+
 def test_friction_coefficient_per_member_is_the_law_bit_for_bit():
     rng = np.random.default_rng(3)
     n_face = 7

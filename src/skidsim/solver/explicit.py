@@ -427,6 +427,11 @@ class _Batch:
         m, n = self.m, self.n
         shape = self.u.shape
         self.f, self.tmp, self.fdamp, self.fint = (np.zeros(shape) for _ in range(4))
+        self.damp_pair = None  # batch with -K v: the dashpot forces and -K v side by side, (2, *shape)
+        if self.nkv is not None and n > 1:
+            self.damp_pair = np.zeros((2, *shape))
+            self.damp_pair[1] = self.nkv
+            self.fdamp, self.nkv = self.damp_pair
         self.kern_beta = None  # stiffness-proportional damping with Prony terms: its own product, N s/m
         if m.rayleigh and not m.incremental_ku:
             self.kern_beta = StructuredKernel(m.mesh, m.beta_r * m.k_inf, batch=n)
@@ -484,6 +489,11 @@ class _Batch:
         idx = np.flatnonzero(sel)
         if idx.size == self.n:
             return self
+        return self._pick(idx)
+
+    def _pick(self, idx: np.ndarray, **member) -> _Batch:
+        """The batch of the members ``idx`` (indices, repeats allowed), their state copied; ``member`` replaces
+        per-member entries of the copies (``ids``, ``v_slide``)."""
         part = object.__new__(_Batch)
         part.n, part.laws = idx.size, [self.laws[i] for i in idx]
         for name in self.NODAL:
@@ -492,8 +502,15 @@ class _Batch:
         part.ft_state = self.ft_state.reshape(3, self.n, -1)[:, idx].reshape(3, -1)
         for name in self.MEMBER:
             setattr(part, name, getattr(self, name)[idx])
+        for name, value in member.items():
+            setattr(part, name, np.asarray(value))
         part.e = {k: np.atleast_1d(v)[idx] for k, v in self.e.items()}
         return self._assemble([part], self.kern.take(idx))
+
+    def spread(self, source: np.ndarray, ids: np.ndarray, v_slide: np.ndarray) -> _Batch:
+        """Members ``ids`` (test speeds ``v_slide``, m/s), each a copy of this batch's member ``source[i]``: the
+        preload of members that differ only in their test speed is one preload (see :func:`_preload_shared`)."""
+        return self._pick(np.asarray(source, dtype=np.intp), ids=ids, v_slide=v_slide)
 
     @staticmethod
     def concat(batches: list[_Batch]) -> _Batch:
@@ -507,6 +524,11 @@ class _Batch:
         """Per-member ``a . c`` of two nodal arrays (``self.mdot``; a float, ``np.vdot``, for one member)."""
         s = (a.shape[0] * a.shape[1], self.n, -1)
         return np.einsum("kbj,kbj->b", a.reshape(s), c.reshape(s))
+
+    def damping_dots(self, v: np.ndarray) -> np.ndarray:
+        """Per-member ``f_d . v`` and ``(-K v_old) . v`` (2, B) in one pass (``damp_pair``; a batch with -K v)."""
+        k = 3 * self.u.shape[1]
+        return np.einsum("pkbj,kbj->pb", self.damp_pair.reshape(2, k, self.n, -1), v.reshape(k, self.n, -1))
 
     def _msum(self, comp: np.ndarray) -> np.ndarray:
         """Per-member sum of one component ``(nz+1, B, ny+1, nx+1)`` of a nodal array (``self.msum``)."""
@@ -713,6 +735,9 @@ def _advance(m: _Model, b: _Batch, ph: _Phase, st: _StepOut) -> None:
 def _power_dots(m: _Model, b: _Batch, ph: _Phase) -> tuple:
     """``f_d . v(n-1/2)`` and the stiffness-damping force's ``. v(n-1/2)`` (J/s) before the velocity update (the
     dashpots' power over the step is ``f . (v_old + v_new) / 2``: two dots, no copy of v)."""
+    if ph.c_per_s > 0 and b.damp_pair is not None:
+        fd_dot, nkv_dot = b.damping_dots(b.v)
+        return fd_dot, m.beta_r * nkv_dot
     fd_dot = b.mdot(b.fdamp, b.v) if ph.c_per_s > 0 else 0.0
     if b.fbeta is not None:
         return fd_dot, b.mdot(b.fbeta, b.v)
@@ -733,6 +758,9 @@ def _slide_energies(m: _Model, b: _Batch, ph: _Phase, st: _StepOut, vb_old, dots
     e["external"] += h * (-m.config.load_n * vz_sum + react_x * 2.0 * vx)
     e["damping"] -= h * fz_hd * vz_sum
     e["friction"] -= h * (_vdot if b.one else st.seg.dot)(st.fric, vb_old + b.vb.take(st.contact.ia, axis=1))
+    paired = ph.c_per_s > 0 and b.damp_pair is not None
+    if paired:
+        fd_dot_v, nkv_dot_v = b.damping_dots(b.v)
     if ph.c_per_s > 0:
         # dashpots between each node and the frame (vx, 0, vz_old): they dissipate c m |w|^2 (w = velocity
         # relative to the frame, >= 0), the holder feeds them f_d . v_frame
@@ -741,12 +769,12 @@ def _slide_energies(m: _Model, b: _Batch, ph: _Phase, st: _StepOut, vb_old, dots
         else:
             fdx, fdz = b.msum(b.fdamp[0]), b.msum(b.fdamp[2])
         fd_frame = 2.0 * (vx * fdx + vz_old * fdz)
-        e["damping"] -= h * (fd_dot_v_old + b.mdot(b.fdamp, b.v) - fd_frame)
+        e["damping"] -= h * (fd_dot_v_old + (fd_dot_v if paired else b.mdot(b.fdamp, b.v)) - fd_frame)
         e["external"] += h * fd_frame
     if b.fbeta is not None:
         e["damping"] -= h * (fb_dot_v_old + b.mdot(b.fbeta, b.v))
     elif b.nkv is not None:  # the Rayleigh stiffness part -beta K v(n-1/2) is beta * nkv
-        e["damping"] -= h * (fb_dot_v_old + m.beta_r * b.mdot(b.nkv, b.v))
+        e["damping"] -= h * (fb_dot_v_old + m.beta_r * (nkv_dot_v if paired else b.mdot(b.nkv, b.v)))
 
 
 def _vdot(a: np.ndarray, c: np.ndarray) -> float:
@@ -807,6 +835,30 @@ def _preload(m: _Model, b: _Batch, out: _Output, clock: _Clock) -> _Batch:
     return _Batch.concat(done)
 
 
+def _same_preload(laws) -> np.ndarray:
+    """For each member, the first member with an equal friction law (``==``, or the same object)."""
+    return np.array([next(i for i in range(j + 1) if laws[i] is law or laws[i] == law) for j, law in enumerate(laws)])
+
+
+def _preload_shared(m: _Model, b: _Batch, out: _Output, clock: _Clock) -> _Batch:
+    """:func:`_preload` of the members with distinct friction laws only; the others get a copy of their twin's state.
+
+    The preload does not depend on the test speed: the slider is pressed onto the pavement at rest (the speed is
+    given at the start of the slide, :meth:`_Output.start_slide`), and every member steps bit for bit as a single
+    run (the batch tests), so members with equal laws preload to the same bits. A calibration batch (one law,
+    three speeds) preloads once instead of three times, a validation batch of two laws at six speeds twice
+    instead of twelve times.
+    """
+    first = _same_preload(b.laws)
+    distinct = first == np.arange(b.n)
+    if distinct.all():
+        return _preload(m, b, out, clock)
+    done = _preload(m, b.take(distinct), out, clock)  # members in id order: the distinct ids
+    out.n_pre[b.ids] = out.n_pre[b.ids[first]]
+    pos = np.searchsorted(done.ids, b.ids[first])
+    return done.spread(pos, b.ids, b.v_slide)
+
+
 def _slide(m: _Model, b: _Batch, out: _Output, clock: _Clock) -> None:
     """Every node gets the test speed in x, the holder slides; a member leaves when it has slid its length."""
     log.info(
@@ -842,7 +894,7 @@ def _slide(m: _Model, b: _Batch, out: _Output, clock: _Clock) -> None:
 class _Output:
     """What each member (by id) reports: preload, energies at the start and the end of its slide, trace rows."""
 
-    FLOAT_ROWS = ("x", "ft", "fn", "a", "ff", "sl")
+    FLOAT_ROWS = ("ft", "fn", "a", "ff", "sl")  # time and position: :meth:`trace` (the same IEEE operations)
 
     def __init__(self, m: _Model, speeds_kmh, vtu_dirs):
         n = len(speeds_kmh)
@@ -853,7 +905,6 @@ class _Output:
         self.every = int(m.config.trace_every)
         self.n_rec = (self.n_slide + self.every - 1) // self.every
         rows = int(self.n_rec.max())
-        self.rec_t = np.empty(rows)
         self.rec = {k: np.empty((n, rows)) for k in self.FLOAT_ROWS}
         self.rec_nc = np.empty((n, rows), dtype=np.int64)
         self.rec_ns = np.empty((n, rows), dtype=np.int64)
@@ -900,10 +951,8 @@ class _Output:
 
     def _record_rows(self, b: _Batch, st: _StepOut, i: int) -> None:
         """The trace row of slide step ``i`` of each member of a batch."""
-        c, seg, sums, dt = st.contact, st.seg, st.sums, self.m.dt
+        c, seg, sums = st.contact, st.seg, st.sums
         r, ids, rec = i // self.every, b.rows, self.rec
-        self.rec_t[r] = i * dt
-        rec["x"][ids, r] = b.v_slide * i * dt
         rec["ft"][ids, r] = -(sums[0] + sums[3])
         rec["fn"][ids, r] = b.fz_sum
         rec["a"][ids, r] = b.area_now
@@ -923,9 +972,7 @@ class _Output:
             if d_max > b.max_pen[0]:
                 b.max_pen[0] = d_max
         if i % self.every == 0:
-            r, j, rec, dt = i // self.every, int(b.ids[0]), self.rec, self.m.dt
-            self.rec_t[r] = i * dt
-            rec["x"][j, r] = b.vx1 * i * dt
+            r, j, rec = i // self.every, int(b.ids[0]), self.rec
             fx = sums[3]
             rec["ft"][j, r] = -float(sums[0] + fx)
             rec["fn"][j, r] = st.fz
@@ -970,10 +1017,11 @@ class _Output:
 
     def trace(self, j: int) -> pd.DataFrame:
         n, rec = int(self.n_rec[j]), self.rec
+        step = np.arange(n) * self.every  # slide step of each row
         return pd.DataFrame(
             {
-                "time_s": self.rec_t[:n].copy(),
-                "position_mm": rec["x"][j, :n] * 1e3,
+                "time_s": step * self.m.dt,
+                "position_mm": (self.v_slide[j] * step * self.m.dt) * 1e3,
                 "tangential_n": rec["ft"][j, :n].copy(),
                 "normal_n": rec["fn"][j, :n].copy(),
                 "contact_area_mm2": rec["a"][j, :n] * 1e6,
@@ -1057,7 +1105,7 @@ def _run(pavement, speeds_kmh, laws, config, y_offset_mm, progress, trace_paths,
     clock = _Clock(config, progress)
     clock.t0 = t_wall0
     b = _Batch(m, np.arange(len(speeds_kmh)), out.v_slide, laws)
-    b = _preload(m, b, out, clock)
+    b = _preload_shared(m, b, out, clock)
     _slide(m, b, out, clock)
     wall = time.perf_counter() - t_wall0
     phase_s = dict(zip(PHASES, clock.ph))
