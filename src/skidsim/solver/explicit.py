@@ -441,6 +441,7 @@ class _Batch:
         self.f_top_z = self.f[2, -1]  # views made once: dead load, holder forces, top velocities, dashpot sums
         self.f_top_xz = self.f[::2, -1].reshape(2, n, -1)
         self.fdamp_xz = self.fdamp[::2].reshape(2, -1) if n == 1 else None
+        self.fdamp_frame_z = np.empty(shape[1:])  # a batch's dashpot frame term in z, N
         self.v_top = self.v[:, -1]
         self.top_v = np.zeros((3, n, 1, 1))  # m/s: (vx, 0, vz) per member
         self.frame_x = None  # sliding: -c m vx (N), the dashpots' frame term in x (made at the first slide step)
@@ -648,7 +649,8 @@ def _damping_force(b: _Batch, ph: _Phase) -> None:
                 if b.vz[0] != 0.0:
                     np.subtract(fd[2], float(b.vz[0]) * ph.neg_cm, out=fd[2])
             elif b.vz.any():  # a nonzero (or NaN) vz: np.any(vz != 0) without its wrapper
-                np.subtract(fd[2], b.vz[:, None, None] * ph.neg_cm, out=fd[2])
+                frame_z = np.multiply(b.vz[:, None, None], ph.neg_cm, out=b.fdamp_frame_z)
+                np.subtract(fd[2], frame_z, out=fd[2])
         b.f += fd
     if ph.sliding and b.kern_beta is not None:  # -beta K v: rigid (frame) motion is in K's null space
         b.kern_beta.force(b.v, b.fbeta, negate=True)
@@ -767,7 +769,7 @@ def _slide_energies(m: _Model, b: _Batch, ph: _Phase, st: _StepOut, vb_old, dots
         if b.one:
             fdx, fdz = _add(b.fdamp_xz, 1).tolist()
         else:
-            fdx, fdz = b.msum(b.fdamp[0]), b.msum(b.fdamp[2])
+            fdx, fdz = np.add.reduce(b.fdamp[::2], axis=(1, 3, 4))  # per-member sums of x and z, one call
         fd_frame = 2.0 * (vx * fdx + vz_old * fdz)
         e["damping"] -= h * (fd_dot_v_old + (fd_dot_v if paired else b.mdot(b.fdamp, b.v)) - fd_frame)
         e["external"] += h * fd_frame
@@ -961,7 +963,7 @@ class _Output:
         self.rec_ns[ids, r] = seg.count(st.stick)
         n_sum = sums[7]
         has_n = n_sum > 0.0
-        rec["sl"][ids, r] = np.where(has_n, seg.dot(c.normal_n, st.s) / np.where(has_n, n_sum, 1.0), np.nan)
+        rec["sl"][ids, r] = np.divide(seg.dot(c.normal_n, st.s), n_sum, out=np.full(b.n, np.nan), where=has_n)
 
     def _record_one(self, b: _Batch, st: _StepOut, i: int) -> None:
         """:meth:`record` of a batch of one: the single run's scalar operations."""
