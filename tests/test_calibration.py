@@ -749,3 +749,26 @@ def test_prior_takes_the_slip_offsets_a_converged_batch_implies_not_the_uncorrec
     stale = calibrate_fast(stale_site, site.curve(law), tight, prior=surrogate_prior(old))
     assert new.converged and new.n_fe_runs == 3
     assert stale.converged and stale.n_fe_runs == 6
+
+
+def test_mu_s_reach_fits_a_curve_above_the_study_bound_and_leaves_the_others_alone():
+    """A curve whose law has mu_s 1.1 (above the study's 0.85, as PIARC/IFI curves of rough surfaces): with the
+    study's bounds (the default) the fit is pinned at 0.85 and tilted; the reach (judged before the first batch)
+    lets mu_s go to 1.5 and recovers the law. A curve inside the bounds is calibrated exactly as without it."""
+    high = ExponentialDecay(mu_s=1.1, mu_k=0.1, alpha=0.05)
+    v = np.arange(5.0, 85.0)
+    meas = pd.DataFrame({"speed_kmh": v, "mu": 1.13 * high.mu(SlipSurrogate.slip_ms(v))})
+    res = calibrate_fast(SlipSurrogate(), meas, JointOptions(tol=1e-4, reach_mu_s_max=1.5))
+    pinned = calibrate_fast(SlipSurrogate(), meas, JointOptions(tol=1e-4))  # the default: the study's bounds
+    reach = res.settings["reach"]
+    assert reach["used"] and reach["rmse_bounds"] - reach["rmse_wide"] > 0.002
+    assert res.settings["bounds"]["mu_s"] == [0.0, 1.5] and pinned.settings["reach"] is None
+    assert pinned.params.mu_s == pytest.approx(0.85)
+    assert (res.params.mu_s, res.params.mu_k, res.params.alpha) == pytest.approx((1.1, 0.1, 0.05), abs=5e-3)
+    assert res.fit_rmse < 1e-3 < pinned.fit_rmse
+
+    inside = pd.DataFrame({"speed_kmh": v, "mu": 1.13 * TRUTH.mu(SlipSurrogate.slip_ms(v))})
+    a = calibrate_fast(SlipSurrogate(), inside, JointOptions(tol=1e-6, reach_mu_s_max=1.5))
+    b = calibrate_fast(SlipSurrogate(), inside, JointOptions(tol=1e-6))
+    assert a.settings["reach"]["used"] is False
+    assert a.params == b.params and a.n_fe_runs == b.n_fe_runs

@@ -54,8 +54,8 @@ def law_trace(law, noise_sd, seed):
     return trace_of(lambda v: G * law.mu_kmh(v + D_KMH), noise_sd, seed)
 
 
-def calibrate_and_assess(trace, simulate=smooth_fe, **opts):
-    res = calibrate_fast(simulate, trace, JointOptions(max_fe_runs=12))
+def calibrate_and_assess(trace, simulate=smooth_fe, joint=None, **opts):
+    res = calibrate_fast(simulate, trace, JointOptions(max_fe_runs=12, **(joint or {})))
     val = simulate_speeds(simulate, res.params, CAL + VAL).assign(method="ours")
     rec = assess(
         res,
@@ -115,13 +115,19 @@ def test_rado_hump_is_outside_the_law():
 def test_parameter_at_bound_is_flagged_with_the_bound_and_its_cost():
     # PIARC curve mu20 0.75, Sp 40 km/h: mu at 0 km/h is 1.24, beyond the mu_s bound 0.85
     trace = trace_of(lambda v: G * mu_piarc(v + D_KMH, 0.75, 40.0), 0.005, 7)
-    res, rec = calibrate_and_assess(trace)
+    res, rec = calibrate_and_assess(trace)  # the study's bounds (the default)
     assert res.params.mu_s == pytest.approx(0.85, abs=1e-9)
     assert "at_bound" in rec["flags"]
     assert {"param": "mu_s", "bound": "upper"}.items() <= rec["at_bound"][0].items()
     assert "mu_s = 0.85 at its upper bound 0.85" in rec["reasons"]["at_bound"]
     assert rec["uncertainty"]["params"]["mu_s"]["upper_open"]
     assert rec["fit"]["bound_cost_rmse"] >= 0.0
+    # with the reach (reach_mu_s_max 1.5) the site is fitted with mu_s up to 1.5: near the curve's 1.24, judged against
+    # the bounds it used (mu_k stays at its 0, as PIARC has no offset), and better at the calibration speeds
+    wide, rec_wide = calibrate_and_assess(trace, joint={"reach_mu_s_max": 1.5})
+    assert wide.settings["reach"]["used"] and wide.settings["bounds"]["mu_s"] == [0.0, 1.5]
+    assert 1.1 < wide.params.mu_s < 1.4 and all(a["param"] != "mu_s" for a in rec_wide["at_bound"])  # mu_k at 0
+    assert rec_wide["fit"]["rmse_fe_calibration"] < rec["fit"]["rmse_fe_calibration"]
 
 
 def test_straight_window_non_identified_direction_is_mu_k_alpha_tradeoff():

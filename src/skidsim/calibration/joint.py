@@ -75,6 +75,7 @@ def calibrate_fast(
     if pilot is not None:
         pilot = float(pilot)
         _pilot_run(ev, sur, pilot, measured_curve, v_fit, y_fit, m_cal, bnd, opt, source)
+    bnd, reach = _reach(sur, v_fit, y_fit, bnd, opt)
     params, converged, message = _iterate(ev, sur, v_fit, y_fit, m_cal, bnd, opt)
     settings = {
         "speeds_kmh": spd.tolist(),
@@ -83,6 +84,7 @@ def calibrate_fast(
         "fit_on": mode,
         "fit_range_kmh": None if opt.fit_range_kmh is None else list(opt.fit_range_kmh),
         "bounds": {k: list(v) for k, v in bnd.items()},
+        "reach": reach,
         "g_prior": opt.g_prior,
         "pilot_speed_kmh": pilot,
         "model": opt.model,
@@ -113,6 +115,22 @@ def calibrate_fast(
         overhead_s=ev.overhead_s(t_start),
         settings=settings,
     )
+
+
+def _reach(sur: _Surrogate, v_fit, y_fit, bnd: dict, opt: JointOptions) -> tuple[dict, dict | None]:
+    """The bounds of the site's fit: ``bnd``, or ``bnd`` with mu_s up to ``opt.reach_mu_s_max`` where that lowers
+    the surrogate's RMSE on the fitted points (mu) by more than ``opt.reach_min_gain_mu`` (no FE run). Returns
+    (bounds, record: the two RMSEs, the wider upper bound and whether it is used; None when there is no wider
+    bound to try)."""
+    hi = opt.reach_mu_s_max
+    if hi is None or hi <= bnd["mu_s"][1]:
+        return bnd, None
+    wide = {**bnd, "mu_s": (bnd["mu_s"][0], float(hi))}
+    _, rmse = sur.fit(v_fit, y_fit, bnd)
+    _, rmse_wide = sur.fit(v_fit, y_fit, wide)
+    used = rmse - rmse_wide > opt.reach_min_gain_mu
+    record = {"rmse_bounds": float(rmse), "rmse_wide": float(rmse_wide), "mu_s_max_wide": float(hi), "used": bool(used)}
+    return (wide if used else bnd), record
 
 
 def _calibration_speeds(speeds_kmh: Sequence[float], opt: JointOptions) -> np.ndarray:

@@ -171,6 +171,15 @@ class JointOptions:
         RMSE vs measured at the calibration speeds by more than this (predicted by the surrogate corrected on that
         batch: its refit law against the batch's verified RMSE); otherwise the surrogate is corrected and another
         batch runs (budget permitting). None: ``tol`` alone decides.
+    reach_mu_s_max: the upper bound of mu_s (dimensionless) where the ``bounds``' own one costs the fit: before the
+        first FE batch, the surrogate's law is fitted to the measured points with ``bounds`` and with mu_s up to
+        this; when the second fit's RMSE is lower by more than ``reach_min_gain_mu`` (mu), the site is calibrated
+        with the wider mu_s interval (``settings["reach"]`` records both fits and the choice). Curves whose zero-
+        speed extrapolation lies above the study's 0.85 (PIARC/IFI and Rado curves of rough surfaces) are then
+        fitted instead of tilted; elsewhere the study's interval stays. None (the default): ``bounds`` alone. Off by
+        default: on chips campaigns it raises the fit but costs 9-27 % more FE steps and does not change how often
+        model criticism names the simulation's speed shape on them (docs/calibration.md, "The law's reach").
+    reach_min_gain_mu: mu; the least RMSE gain of the wider mu_s interval that makes a site use it.
     """
 
     tol: float = 0.01
@@ -189,6 +198,8 @@ class JointOptions:
     alpha_step_max_cost: float = 0.005
     correction_relaxation: float = 0.5
     fit_gain_tol: float | None = 0.004
+    reach_mu_s_max: float | None = None
+    reach_min_gain_mu: float = 0.002
 
     def __post_init__(self):
         where = "calibration.ours"
@@ -206,6 +217,9 @@ class JointOptions:
         if self.bounds is not None:
             object.__setattr__(self, "bounds", _bounds(f"{where}.bounds", self.bounds))
         _positive(f"{where}.g_prior", self.g_prior)
+        if self.reach_mu_s_max is not None:
+            _positive(f"{where}.reach_mu_s_max", self.reach_mu_s_max)
+        _positive(f"{where}.reach_min_gain_mu", self.reach_min_gain_mu)
         if self.pilot_speed_kmh is not None and self.pilot_speed_kmh != "fastest":
             _positive(f"{where}.pilot_speed_kmh", self.pilot_speed_kmh)
         _positive(f"{where}.secant_min_dmu", self.secant_min_dmu)
