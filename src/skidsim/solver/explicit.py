@@ -441,7 +441,7 @@ class _Batch:
         self.f_top_z = self.f[2, -1]  # views made once: dead load, holder forces, top velocities, dashpot sums
         self.f_top_xz = self.f[::2, -1].reshape(2, n, -1)
         self.fdamp_xz = self.fdamp[::2].reshape(2, -1) if n == 1 else None
-        self.fdamp_frame_z = np.empty(shape[1:])  # a batch's dashpot frame term in z, N
+        self.fdamp_frame_z = None if n == 1 else np.empty(shape[1:])  # a batch's dashpot frame term in z, N
         self.v_top = self.v[:, -1]
         self.top_v = np.zeros((3, n, 1, 1))  # m/s: (vx, 0, vz) per member
         self.frame_x = None  # sliding: -c m vx (N), the dashpots' frame term in x (made at the first slide step)
@@ -466,9 +466,9 @@ class _Batch:
         if self.one:
             self.e = {k: float(np.atleast_1d(v)[0]) for k, v in self.e.items()}
             self.vx1 = float(self.v_slide[0])
-            self.mdot, self.msum = _vdot, _sum
+            self.mdot = _vdot
         else:
-            self.mdot, self.msum = self._mdot, self._msum
+            self.mdot = self._mdot
 
     def _assemble(self, parts, kern) -> _Batch:
         new = object.__new__(_Batch)
@@ -530,10 +530,6 @@ class _Batch:
         """Per-member ``f_d . v`` and ``(-K v_old) . v`` (2, B) in one pass (``damp_pair``; a batch with -K v)."""
         k = 3 * self.u.shape[1]
         return np.einsum("pkbj,kbj->pb", self.damp_pair.reshape(2, k, self.n, -1), v.reshape(k, self.n, -1))
-
-    def _msum(self, comp: np.ndarray) -> np.ndarray:
-        """Per-member sum of one component ``(nz+1, B, ny+1, nx+1)`` of a nodal array (``self.msum``)."""
-        return comp.sum(axis=(0, 2, 3))
 
     def kinetic(self) -> np.ndarray:
         w = (self.v * self.v).sum(axis=0)
@@ -782,11 +778,6 @@ def _slide_energies(m: _Model, b: _Batch, ph: _Phase, st: _StepOut, vb_old, dots
 def _vdot(a: np.ndarray, c: np.ndarray) -> float:
     """``a . c`` of a batch of one (``_Batch.mdot``)."""
     return float(np.vdot(a, c))
-
-
-def _sum(a: np.ndarray) -> float:
-    """Sum of a batch of one (``_Batch.msum``)."""
-    return float(_add(a, None))
 
 
 #: ``np.add.reduce``: what ``ndarray.sum()`` calls (the same pairwise sum), without its Python wrapper
