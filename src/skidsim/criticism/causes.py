@@ -14,6 +14,11 @@ from .options import DiagnosisOptions
 #: The naming rule of a section effect: a candidate is named for it only when it explains at least this share of
 #: the section effect's sum of squares (:func:`section_rule`).
 SECTION_SHARE_MIN = 0.5
+#: Rule 3d of the naming rule of a section effect: the share of the section effect beyond the texture model that a
+#: column must carry to be named for it (:func:`beyond_texture_explanations`).
+BEYOND_TEXTURE_SHARE_MIN = 0.9
+#: The suffix of ``Cause.explains`` for a column named by rule 3d.
+BEYOND_TEXTURE = " beyond the texture model"
 #: The label of section identity when it is significant and nothing explains most of it.
 SECTION_UNEXPLAINED = "section (unexplained)"
 #: Label of a between-site section effect that the measured curves do not show beyond a quadratic texture model in
@@ -71,8 +76,12 @@ class Cause:
     model in the prediction model's terms (:func:`skidsim.criticism.screening.section_rest_tests`; NaN
     elsewhere); ``explains``: the section effect (``section (<level>, <kind>)``) a section-level column is named
     for by rule 3b of :func:`section_rule`, or the finer significant grouping (``<column> (<level>, <kind>)``) it
-    describes by rule 3c (:func:`refinement_descriptions`); either makes it significant although its own
-    p_adjusted is above fdr (empty otherwise).
+    describes by rule 3c (:func:`refinement_descriptions`), or ``section (between-site, <kind>) beyond the
+    texture model`` by rule 3d (:func:`beyond_texture_explanations`); each makes it significant although its own
+    p_adjusted is above fdr (empty otherwise); ``beyond_texture_share``, ``beyond_texture_p``: for a section-level
+    sites.csv column between sites, its share of the section effect in the measured curves beyond the quadratic
+    texture model of rule 6 and its exact permutation p there
+    (:func:`skidsim.criticism.screening.beyond_texture_tests`; NaN elsewhere).
     """
 
     variable: str
@@ -104,6 +113,8 @@ class Cause:
     label: str = ""
     section_rest_p: float = float("nan")
     explains: str = ""
+    beyond_texture_share: float = float("nan")
+    beyond_texture_p: float = float("nan")
 
     @property
     def category(self) -> str:
@@ -212,6 +223,8 @@ def make_causes(tests, adjustment, candidates, options, n_permutations: int) -> 
                 section_id=bool(t.section_id),
                 label=_label(t, candidates.mpd),
                 section_rest_p=float(getattr(t, "section_rest_p", float("nan"))),
+                beyond_texture_share=float(getattr(t, "beyond_texture_share", float("nan"))),
+                beyond_texture_p=float(getattr(t, "beyond_texture_p", float("nan"))),
             )
         )
     return causes
@@ -413,7 +426,13 @@ def _explanation(c: Cause, S: Cause, texture: bool, share_min: float) -> bool:
     K = S.kind
     if texture:
         return c.source in TEXTURE_SOURCES and (c.kind == K or K == "main") and _explains(c, K, share_min)
-    return c.kind == K and c.section_level and not c.section_id and _explains(c, K, share_min)
+    return c.kind == K and c.section_level and not c.section_id and (_explains(c, K, share_min) or _names(c, S))
+
+
+def _names(c: Cause, S: Cause) -> bool:
+    """Whether column ``c`` was named for the section effect ``S`` by rule 3d (:func:`section_explanations`): it
+    explains most of S beyond the texture model, whatever its share of the residual's section effect."""
+    return c.explains == f"section ({S.level}, {S.kind}){BEYOND_TEXTURE}" and np.isfinite(c.beyond_texture_share)
 
 
 def _column_explains(c: Cause, S: Cause, causes: list[Cause], share_min: float) -> float:
@@ -433,6 +452,8 @@ def _column_explains(c: Cause, S: Cause, causes: list[Cause], share_min: float) 
         if x.variable == c.variable and x.level == S.level and (x.kind == S.kind or S.kind == "main")
     ]
     shares = [v for v in shares if np.isfinite(v) and v >= share_min]
+    if _names(c, S):
+        shares.append(c.beyond_texture_share)
     return max(shares) if shares else float("nan")
 
 
@@ -478,7 +499,9 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
       ``main``; the column itself may be significant at another level or kind) moves right above S (the one with
       the largest share);
     * (rule 3b, :func:`section_explanations`, applied by :func:`rank_causes` before the ranking: a section-level
-      column that carries S and leaves nothing beyond it is significant by then and counts as such a column);
+      column that carries S and leaves nothing beyond it is significant by then and counts as such a column;
+      rule 3d, :func:`beyond_texture_explanations`: so is a column that carries most of S beyond the texture
+      model);
     * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
       ``section (unexplained)``; it then ranks below a texture explanation of another section effect of its level
       (:func:`_texture_above_unexplained`);
@@ -585,6 +608,47 @@ def section_explanations(causes: list[Cause], fdr: float, share_min: float = SEC
     return out
 
 
+def beyond_texture_explanations(causes: list[Cause], fdr: float, share_min: float = SECTION_SHARE_MIN) -> list[Cause]:
+    """Rule 3d of the naming rule of a section effect: between sites, the section-level sites.csv column that
+    carries most of the section effect **beyond the texture model** is named for a significant section effect S
+    (kind K) that no texture cause and no column explains through the residual's own shares (rules 2, 3, 3b), when
+
+    * the measured curves hold a section effect beyond the quadratic texture model (``S.section_rest_p <= fdr``,
+      the test of rule 6: that effect is not the texture model's);
+    * of the section-level columns of kind K the column carries the largest share of that effect
+      (``beyond_texture_share``, :func:`skidsim.criticism.screening.beyond_texture_tests`), at least
+      :data:`BEYOND_TEXTURE_SHARE_MIN`;
+    * its exact permutation test over the sections there has ``beyond_texture_p <= fdr``.
+
+    Why: between sites the residual is the texture model's held-out error plus what acts beyond the texture. Where
+    the texture model's misfit clusters by section (the texture designs are drawn per section) it dilutes a
+    column's share of the residual's section effect below ``share_min`` although the column carries nearly all of
+    what the texture does not describe (spectral categorical x speed campaigns of the rates: the aggregate 0.35-0.66
+    of the residual's section effect, 0.94-0.99 of the effect beyond the texture model). The column is returned
+    with ``significant`` True and ``explains`` = ``section (between-site, K) beyond the texture model``; its
+    p_value and p_adjusted are unchanged and the report gives both shares."""
+    out = list(causes)
+    for S in [c for c in out if c.section_id and c.significant and c.level == "between-site"]:
+        K = S.kind
+        if not (np.isfinite(S.section_rest_p) and S.section_rest_p <= fdr):
+            continue
+        if any(_explanation(c, S, True, share_min) or _explanation(c, S, False, share_min) for c in out):
+            continue
+        if any(np.isfinite(_column_explains(c, S, out, share_min)) for c in out):
+            continue
+        cols = [
+            c
+            for c in out
+            if c.level == S.level and c.kind == K and c.source == "sites" and np.isfinite(c.beyond_texture_share)
+        ]
+        if not cols:
+            continue
+        best = max(cols, key=lambda c: c.beyond_texture_share)
+        if best.beyond_texture_share >= BEYOND_TEXTURE_SHARE_MIN and best.beyond_texture_p <= fdr:
+            out[_pos(out, best)] = replace(best, significant=True, explains=f"section ({S.level}, {K}){BEYOND_TEXTURE}")
+    return out
+
+
 def _tie(x: float) -> float:
     """``x`` to 10 significant digits: an affine copy of a column (the texture stage's ETD = 1.1 MPD) gets the same
     statistics up to rounding in the last bits, which should not decide the order."""
@@ -598,8 +662,8 @@ def _rank_key(c: Cause, mpd_col: str | None) -> tuple:
 
 
 def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr: float | None = None) -> list[Cause]:
-    """Rules 3b and 3c of the naming rule of a section effect first (:func:`section_explanations`,
-    :func:`refinement_descriptions`, at ``fdr``; None: the default of
+    """Rules 3b, 3d and 3c of the naming rule of a section effect first (:func:`section_explanations`,
+    :func:`beyond_texture_explanations`, :func:`refinement_descriptions`, at ``fdr``; None: the default of
     :class:`~skidsim.criticism.options.DiagnosisOptions`); then
     significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
     ``z``, and on ties (to 10 significant digits) the MPD column ``mpd_col`` first (a texture table also holds its
@@ -609,6 +673,7 @@ def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr
     if fdr is None:
         fdr = DiagnosisOptions().fdr
     causes = section_explanations(causes, fdr)
+    causes = beyond_texture_explanations(causes, fdr)
     causes = refinement_descriptions(causes, cov, fdr)
     causes = sorted(causes, key=lambda c: _rank_key(c, mpd_col))
     _descriptions_at_their_groupings(causes)

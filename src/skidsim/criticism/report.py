@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..atomic import write_parquet, write_text
-from .causes import Cause
+from .causes import BEYOND_TEXTURE, Cause
 
 
 def json_safe(o):
@@ -111,6 +111,17 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
             f"{top['section_share']:.0%} of the section effect, and its own permutation test over the sections has "
             f"p = {top['p_value']:.2g} "
             "(p_adj above fdr over the section-level columns).",
+            "",
+        ]
+    elif str(top.get("explains", "")).endswith(BEYOND_TEXTURE):
+        effect = str(top["explains"])[: -len(BEYOND_TEXTURE)]
+        lines += [
+            f"Named as the explanation of the significant `{effect}` effect (rule 3d of the naming rule): the "
+            "measured curves hold a section effect beyond a quadratic texture model in the prediction model's terms, "
+            f"and `{top['variable']}` carries {top['beyond_texture_share']:.0%} of it (exact permutation test over "
+            f"the sections there p = {top['beyond_texture_p']:.2g}); of the residual's section effect, which also "
+            f"holds the texture model's misfit, it carries {top['section_share']:.0%} (its own test p = "
+            f"{top['p_value']:.2g}, p_adj {top['p_adjusted']:.2g}).",
             "",
         ]
     elif top.get("explains"):
