@@ -901,7 +901,9 @@ def test_the_column_net_of_the_texture_model_projects_as_an_independent_least_sq
 
 
 @pytest.mark.parametrize("seed", [1, 13])
-def test_rule_3d_names_the_column_that_carries_the_section_effect_beyond_the_texture_model(seed, spectral_design_1):
+def test_rule_3d_names_the_column_that_carries_the_section_effect_beyond_the_texture_model(
+    seed, spectral_design_1, monkeypatch
+):
     """Rate campaigns spectral / categorical_speed / seeds 1 and 13 (Rado's friction, whose misfit by the
     prediction model clusters by section, plus the polished aggregate's low-speed loss on its 3 limestone sections):
     the aggregate is not significant on its own (p_adjusted above 0.05), carries 0.35 / 0.66 of the residual's
@@ -920,12 +922,8 @@ def test_rule_3d_names_the_column_that_carries_the_section_effect_beyond_the_tex
     assert top.level == "between-site" and top.explains.endswith(cz.BEYOND_TEXTURE)
     assert top.beyond_texture_share >= cz.BEYOND_TEXTURE_SHARE_MIN and top.beyond_texture_p <= 0.05
     assert top.p_adjusted > 0.05
-    off = pytest.MonkeyPatch()
-    off.setattr(cz, "BEYOND_TEXTURE_SHARE_MIN", 1.01)
-    try:
-        top_off = cr.named_cause(_rate_screen(t, seed))
-    finally:
-        off.undo()
+    monkeypatch.setattr(cz, "BEYOND_TEXTURE_SHARE_MIN", 1.01)
+    top_off = cr.named_cause(_rate_screen(t, seed))
     assert top_off is not None and top_off.label == SECTION_UNEXPLAINED, top_off
 
 

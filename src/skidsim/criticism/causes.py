@@ -632,15 +632,9 @@ def beyond_texture_explanations(causes: list[Cause], fdr: float, share_min: floa
         K = S.kind
         if not (np.isfinite(S.section_rest_p) and S.section_rest_p <= fdr):
             continue
-        if any(_explanation(c, S, True, share_min) or _explanation(c, S, False, share_min) for c in out):
-            continue
-        if any(np.isfinite(_column_explains(c, S, out, share_min)) for c in out):
-            continue
-        cols = [
-            c
-            for c in out
-            if c.level == S.level and c.kind == K and c.source == "sites" and np.isfinite(c.beyond_texture_share)
-        ]
+        if any(_explanation(c, S, True, share_min) or np.isfinite(_column_explains(c, S, out, share_min)) for c in out):
+            continue  # a texture cause (rule 2) or a significant column (rules 3, 3b) explains S
+        cols = [c for c in out if c.level == S.level and c.kind == K and np.isfinite(c.beyond_texture_share)]
         if not cols:
             continue
         best = max(cols, key=lambda c: c.beyond_texture_share)

@@ -426,7 +426,8 @@ def section_rest_tests(
     identity is tested too: its ``section_rest_p`` is the p of a section effect in the measured curves net of
     ``F`` (:func:`rest_residuals`; the reduced model ``F``, the same free site permutations), which rule 6 of the
     naming rule reads (a between-site section effect that the measured curves do not show beyond the texture
-    model is the texture model's misfit). In place."""
+    model is the texture model's misfit); so is each section-level column, on its share of that section effect
+    and by an exact test there (:func:`beyond_texture_tests`, read by rule 3d). In place."""
     secs, inv = np.unique(ctx.sec, return_inverse=True)
     G = np.zeros((ctx.n, len(secs)))
     G[np.arange(ctx.n), inv] = 1.0
