@@ -24,6 +24,9 @@ functions, with only the seed changed (the tests use seed 7):
   texture model).
 * ``texture_speed_chips`` (not in the default list): the hysteresis effect of ``texture_speed`` on the chips
   generator.
+* ``texture_measure_alone`` (not in the default list): ``texture_measure`` without the generator's random section
+  factors, so that the contact-zone microtexture is the campaign's one hidden effect (the issue's design; the
+  section factors are a second, section-level effect that no column carries). Right: as ``texture_measure``.
 * ``section_column_36`` (not in the default list): ``section_column`` with 3 sites per section (36 sites, the
   issue's and the rate campaigns' design) instead of the test's 2; the sd over the sites of the offset is 0.022 mu.
 * ``section_column_rate_size`` (not in the default list): ``section_column_36`` with the offset -0.08, sd over the
@@ -83,6 +86,7 @@ GENERATOR_COLUMN_KINDS = tuple(f"{k}_{g}" for g in ("chips", "spectral") for k i
 #: Not in the default list (module docstring).
 EXTRA_KINDS = (
     "texture_speed_chips",
+    "texture_measure_alone",
     "section_column_36",
     "section_column_rate_size",
     "none_chips",
@@ -124,6 +128,8 @@ def run_kind(kind: str, seed: int, workdir: Path) -> dict:
         return run_texture_campaign(workdir, "spectral", "hysteresis", 0.8, seed=seed)
     if kind == "texture_measure":
         return run_texture_campaign(workdir, "chips", "contact_micro", 2.0, seed=seed)
+    if kind == "texture_measure_alone":
+        return run_texture_campaign(workdir, "chips", "contact_micro", 2.0, seed=seed, section_factors=False)
     if kind == "texture_speed_chips":
         return run_texture_campaign(workdir, "chips", "hysteresis", 0.8, seed=seed)
     if kind in ("none_chips", "none_spectral"):
@@ -161,7 +167,7 @@ def is_right(kind: str, top: dict | None) -> bool:
         return "MPD" in var.upper() and top["kind"] == "x_speed"
     if kind in ("texture_speed", "texture_speed_chips"):
         return texture_model or (top.get("source") == "texture" and top["kind"] == "x_speed")
-    if kind == "texture_measure":
+    if kind in ("texture_measure", "texture_measure_alone"):
         return (texture_model or top.get("source") == "texture") and top["level"] == "between-site"
     raise ValueError(kind)
 

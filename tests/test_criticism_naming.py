@@ -406,6 +406,29 @@ def test_temperature_shift_recovers_the_wlf_reference_and_beats_the_generic_term
     ident = r.gain["identifiability"]
     assert ident["identifiable"] and ident["why"] is None and ident["perm_p"] <= 0.05
     assert ident["t_ref_c_all_sites"] == pytest.approx(20.0, abs=5.0)
+    half = 1.96 * ident["t_ref_c_jackknife_se"]
+    assert ident["t_ref_c_pinned"] == (half <= 5.0) and f"+-{half:.1f} deg C" in ident["t_ref_c_precision"]
+    temps = tables["sites"]["temperature_c"]
+    assert f"{temps.min():.1f}-{temps.max():.1f} deg C" in ident["t_ref_c_precision"]
+    from skidsim.criticism.report import report_markdown
+
+    clist = [{**c.as_dict(), "rank": k} for k, c in enumerate(r.causes, 1)]
+    assert ident["t_ref_c_precision"] in report_markdown(clist, r.gain, None, ".")
+
+
+def test_the_precision_of_the_wlf_reference_is_judged_on_its_jackknife_half_width():
+    """1.96 se against issue 33's 5 deg C: se 2.5 deg C (half-width 4.9) pins T_r, se 2.6 (5.096) does not, and the
+    sentence says so with the temperature range; without folds the precision is unknown, never pinned."""
+    from skidsim.criticism.gain import t_ref_precision
+
+    pinned = t_ref_precision(2.5, (18.0, 22.0))
+    assert pinned["t_ref_c_pinned"] and pinned["t_ref_c_precision"] == (
+        "T_r pinned to +-4.9 deg C (95 %) from sites at 18.0-22.0 deg C"
+    )
+    loose = t_ref_precision(2.6, (18.04, 21.96))
+    assert not loose["t_ref_c_pinned"]
+    assert loose["t_ref_c_precision"].startswith("T_r pinned only to +-5.1 deg C (95 %) from sites at 18.0-22.0 deg C")
+    assert not t_ref_precision(float("nan"), None)["t_ref_c_pinned"]
 
 
 def test_temperature_shift_says_why_it_is_not_identified():

@@ -15,7 +15,7 @@ from .extensions import CovariateTerm, ExtendedModel, TemperatureShift
 from .options import DiagnosisOptions
 from .recalibration import predict_extended, recalibrate, refit_correction, refit_design, temperature_identifiability
 from .residuals import LEVELS, require_columns
-from .scopes import Scope, centred_speed, make_scope, site_target
+from .scopes import Scope, centred_speed, make_scope, site_target, site_values
 
 _DEFAULTS = DiagnosisOptions()
 #: The summary keys of gain.json's ``over_texture_refit`` and ``over_shared_level`` comparisons.
@@ -265,8 +265,9 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
     (``decay_slope``, log10 alpha per log10 mm of ``TemperatureShift.decay_column``; None without one), and how
     precisely the sections pin T_r: the leave-one-section-out jackknife of the folds' T_r,
     ``t_ref_c_jackknife_se = sqrt((k - 1)/k sum (T_j - mean T)^2)`` over the k folds (deg C), and the interval
-    ``t_ref_c_all_sites +- 1.96 se`` (``t_ref_c_interval_95``). ``why`` says why T_r is not identified (None where
-    it is). None for other extensions."""
+    ``t_ref_c_all_sites +- 1.96 se`` (``t_ref_c_interval_95``), with :func:`t_ref_precision`'s verdict on that
+    interval (``t_ref_c_pinned``, ``t_ref_c_precision``). ``why`` says why T_r is not identified (None where it
+    is). None for other extensions."""
     between = level_scopes.get("between-site")
     for ext, scopes, _ in results:
         if not isinstance(ext, TemperatureShift) or "held_out_sites" not in scopes or between is None:
@@ -277,6 +278,9 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
         folds = scopes["held_out_sites"]["extension"]["params_per_fold"]
         t = np.array([f["t_ref_c"] for f in folds], dtype=float)
         se = float(np.sqrt((len(t) - 1) / len(t) * np.sum((t - t.mean()) ** 2))) if len(t) > 1 else float("nan")
+        temps = site_values(cov, ext.column, between.sites)
+        temps = temps[np.isfinite(temps)]
+        precision = t_ref_precision(se, (float(temps.min()), float(temps.max())) if temps.size else None)
         return {
             "extension": "TemperatureShift",
             "parameter": "t_ref_c",
@@ -289,10 +293,43 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
             "t_ref_c_median": float(np.median(t)),
             "t_ref_c_jackknife_se": se,
             "t_ref_c_interval_95": [whole["t_ref_c"] - 1.96 * se, whole["t_ref_c"] + 1.96 * se],
+            **precision,
             "decay_slope": whole.get("decay_slope"),
             "routes": {r: int(sum(f.get("route") == r for f in folds)) for r in ("curves", "prediction")},
         }
     return None
+
+
+#: Half-width (deg C) of the 95 % jackknife interval of the WLF reference temperature within which T_r counts as
+#: pinned by the campaign: issue 33's "recovers t_ref within 5 deg C".
+T_REF_PINNED_C = 5.0
+
+
+def t_ref_precision(se_c: float, temperature_range_c: tuple[float, float] | None) -> dict:
+    """How precisely the sections pin the WLF reference temperature: ``t_ref_c_pinned`` is whether the 95 %
+    jackknife half-width ``1.96 se_c`` (deg C) is at most :data:`T_REF_PINNED_C`; ``t_ref_c_precision`` says it in
+    words, with the sites' temperature range (deg C, min and max; None if unknown). The WLF sensitivity
+    ``d log10 a_T/dT = -C1 C2/(C2 + T - T_r)^2`` is all that T_r sets, and over a narrow range of temperatures it
+    changes too little for the sites' scatter to pin it: T_r then moves the shift's size, not whether there is
+    one (the permutation test of ``identifiable``), so a shift can be identified while its T_r is not pinned."""
+    half = 1.96 * float(se_c)
+    span = (
+        ""
+        if temperature_range_c is None
+        else (f" from sites at {temperature_range_c[0]:.1f}-{temperature_range_c[1]:.1f} deg C")
+    )
+    if not np.isfinite(half):
+        return {"t_ref_c_pinned": False, "t_ref_c_precision": "T_r's precision is unknown (fewer than 2 folds)"}
+    if half <= T_REF_PINNED_C:
+        return {"t_ref_c_pinned": True, "t_ref_c_precision": f"T_r pinned to +-{half:.1f} deg C (95 %){span}"}
+    return {
+        "t_ref_c_pinned": False,
+        "t_ref_c_precision": (
+            f"T_r pinned only to +-{half:.1f} deg C (95 %){span}: over that range the WLF sensitivity, all that "
+            f"T_r sets, changes too little for the sections to fix T_r within {T_REF_PINNED_C:.0f} deg C; read T_r "
+            "as that interval, not as a value"
+        ),
+    }
 
 
 def baseline_gain(residuals: pd.DataFrame, options: DiagnosisOptions = _DEFAULTS) -> tuple[dict, pd.DataFrame]:

@@ -145,7 +145,9 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         state = (
             f"identified (T_r {ident['t_ref_c_all_sites']:.1f} deg C over all sites, permutation p "
             f"{ident['perm_p']:.2g}; median over folds {ident['t_ref_c_median']:.1f} deg C; 95 % interval over "
-            f"the sections (jackknife) {_interval(ident.get('t_ref_c_interval_95'))} deg C)"
+            f"the sections (jackknife) {_interval(ident.get('t_ref_c_interval_95'))} deg C"
+            + (f"; {ident['t_ref_c_precision']}" if ident.get("t_ref_c_precision") else "")
+            + ")"
             if ident.get("identifiable")
             else f"not identifiable: {ident.get('why')}"
         )
