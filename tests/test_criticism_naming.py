@@ -447,6 +447,33 @@ def test_temperature_shift_says_why_it_is_not_identified():
     assert not ident["identifiable"] and "WLF" in ident["why"], ident
 
 
+@pytest.mark.parametrize("level", ["between-site", "within-site"])
+def test_drainage_says_why_its_kappa_is_not_identified(level):
+    """No drainage in the campaign (seed 6): DrainageIFI still fits kappa > 0 within sites (0.21, jackknife interval
+    [0.08, 0.34]: the calibrated law's speed shape, common to the sites, not a shape that scales with 1/Sp), so the
+    permutation test of MPD over the sites must say no (p 0.94 within sites, 0.22 between), and gain.json says
+    why. The drainage campaigns of tests/test_diagnosis.py are identified at the permutation floor (p 0.02)."""
+    from skidsim.criticism.extensions import DrainageIFI, ExtendedModel
+
+    tables = campaign(6, None)
+    res = cr.build_residuals(tables["sites"], tables["measured"], tables["simulated"], tables["predicted"])
+    cause = Cause("mpd_mm", level, "x_speed", 0.01, 0.1, 0.01, 0.01, True, dtype="numeric")
+    gain, _ = cr.evaluate_extension(
+        ExtendedModel(cause, DrainageIFI(mpd_column="mpd_mm")),
+        res,
+        tables["sites"],
+        tables["texture"],
+        DiagnosisOptions(n_boot=50),
+    )
+    ident = gain["identifiability"]
+    assert ident["extension"] == "DrainageIFI" and not ident["identifiable"], ident
+    assert ident["perm_p"] > 0.05 and "does not follow MPD" in ident["why"], ident
+    from skidsim.criticism.report import report_markdown
+
+    report = report_markdown([{**cause.as_dict(), "rank": 1}], gain, None, ".")
+    assert f"Drainage factor kappa of DrainageIFI: not identifiable: {ident['why']}." in report
+
+
 def _rate_screen(t, seed):
     """The screening of a rate campaign's tables as the diagnosis runs it (prediction features as lead)."""
     from skidsim.criticism.adjustment import texture_model_scores

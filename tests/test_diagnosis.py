@@ -131,11 +131,18 @@ def test_hidden_effect_is_named_and_extension_gains(tmp_path, effect):
     expected = {"temperature": "TemperatureShift", "drainage": "DrainageIFI", "squeeze": "DrainageIFI"}.get(effect)
     if expected is not None:
         assert expected in [r.gain["extension"]] + [a["extension"] for a in r.gain["alternatives"]]
+    if effect in ("drainage", "squeeze"):  # kappa identified: at neither bound, the shape follows MPD (permutations)
+        ident = r.gain["identifiability"]
+        assert ident["extension"] == "DrainageIFI" and ident["identifiable"] and ident["why"] is None, ident
+        assert ident["perm_p"] <= 0.05 and ident["kappa_interval_95"][0] > 0
+        if effect == "drainage":  # the IFI truth, kappa 0.5
+            assert ident["form_all_sites"] == "ifi" and ident["kappa_all_sites"] == pytest.approx(0.5, abs=0.15)
     if r.gain["extension"] == "DrainageIFI":  # form "auto": the chosen curve form per fold is recorded and reported
         folds = own["extension"]["params_per_fold"]
         assert all(f["form"] in ("ifi", "squeeze") and f["train_sse"] >= 0 for f in folds)
         report = Path(cr.write_outputs(tmp_path / "out", r.residuals, r.causes, r.gain)["report"]).read_text()
         assert "Drainage curve form chosen on the training data, per fold:" in report
+        assert "Drainage factor kappa of DrainageIFI: identified (kappa " in report
 
 
 @pytest.mark.slow

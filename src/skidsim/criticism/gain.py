@@ -3,7 +3,7 @@ R^2 before and after with percentile bootstrap intervals over whole sites. Frict
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 import pandas as pd
@@ -11,7 +11,7 @@ import pandas as pd
 from ..errors import InputError
 from .covariates import DEFAULT_EXCLUDE, score_table, site_covariates, texture_scores
 from .crossval import folds, is_section_nested
-from .extensions import CovariateTerm, ExtendedModel, TemperatureShift
+from .extensions import CovariateTerm, DrainageIFI, ExtendedModel, TemperatureShift
 from .options import DiagnosisOptions
 from .recalibration import predict_extended, recalibrate, refit_correction, refit_design, temperature_identifiability
 from .residuals import LEVELS, require_columns
@@ -249,13 +249,13 @@ def evaluate_extension(
         "alternatives": [{"extension": type(e).__name__, "scopes": s} for e, s, _ in results if e is not best[0]],
     }
     gain["gain_excludes_zero"] = bool(own in best[1] and best[1][own]["gain_excludes_zero"])
-    ident = physical_identifiability(results, level_scopes, cov)
+    ident = physical_identifiability(results, level_scopes, cov, own)
     if ident is not None:
         gain["identifiability"] = ident
     return gain, best[2]
 
 
-def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> dict | None:
+def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own: str | None = None) -> dict | None:
     """Whether the physical extension's own parameter is identified (gain.json ``identifiability``): for
     :class:`~skidsim.criticism.extensions.TemperatureShift` between sites, the WLF reference temperature from the
     measured curves of all sites with a permutation test of the temperatures
@@ -267,7 +267,14 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
     ``t_ref_c_jackknife_se = sqrt((k - 1)/k sum (T_j - mean T)^2)`` over the k folds (deg C), and the interval
     ``t_ref_c_all_sites +- 1.96 se`` (``t_ref_c_interval_95``), with :func:`t_ref_precision`'s verdict on that
     interval (``t_ref_c_pinned``, ``t_ref_c_precision``). ``why`` says why T_r is not identified (None where it
-    is). None for other extensions."""
+    is). For :class:`~skidsim.criticism.extensions.DrainageIFI`, kappa in the scope ``own`` (the cause's):
+    :func:`drainage_identifiability`. None for other extensions."""
+    drainage = next((r for r in results if isinstance(r[0], DrainageIFI)), None)
+    if drainage is not None:
+        name = own if own in drainage[1] else next(iter(drainage[1]), None)
+        scope = next((s for s in level_scopes.values() if s is not None and s.name == name), None)
+        if scope is not None and drainage[1][name].get("extension", {}).get("params_per_fold"):
+            return drainage_identifiability(drainage[0], scope, cov, drainage[1][name]["extension"]["params_per_fold"])
     between = level_scopes.get("between-site")
     for ext, scopes, _ in results:
         if not isinstance(ext, TemperatureShift) or "held_out_sites" not in scopes or between is None:
@@ -298,6 +305,87 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame) -> 
             "routes": {r: int(sum(f.get("route") == r for f in folds)) for r in ("curves", "prediction")},
         }
     return None
+
+
+def _sse_all_sites(ext, params: dict, scope: Scope, cov: pd.DataFrame) -> float:
+    """Squared error (mu^2) of the extension fitted on every site of ``scope``, over all its rows."""
+    a = predict_extended(ext, params, scope, cov, np.ones(len(scope.sites), dtype=bool))
+    return float(np.sum((a - scope.rows["measured"].to_numpy(float)) ** 2))
+
+
+#: Permutations of the MPD column over the sites in :func:`drainage_identifiability` (p floor 1/50).
+DRAINAGE_PERMUTATIONS = 49
+
+
+def drainage_identifiability(
+    ext: DrainageIFI, scope: Scope, cov: pd.DataFrame, folds: list[dict], n_perm: int = DRAINAGE_PERMUTATIONS
+) -> dict:
+    """Whether the drainage extension's kappa (dimensionless) is identified (gain.json ``identifiability``): the
+    extension recalibrated on every site of ``scope`` (``kappa_all_sites``, ``form_all_sites``; form ``auto``: the
+    curve form with the smaller training error), the folds' forms (``forms``: count per form) and kappa (median
+    over the folds of the all-sites form), and how precisely the sections pin kappa: the leave-one-section-out
+    jackknife over those folds, ``kappa_jackknife_se = sqrt((k - 1)/k sum (kappa_j - mean kappa)^2)``, and
+    ``kappa_interval_95 = kappa_all_sites +- 1.96 se``. Drainage is a speed shape that scales with the site's
+    macrotexture (1/Sp, Sp = 14.2 + 89.7 MPD); a speed shape common to every site (the calibrated law's functional
+    form) also lowers the error for kappa > 0. So the all-sites fit is repeated with the MPD column permuted over
+    the sites (``n_perm`` seeded permutations, the all-sites form): ``perm_p = (1 + #{SSE_perm <= SSE}) / (1 +
+    n_perm)``. ``identifiable`` is false, with ``why``, when kappa sits at a bound of ``ext.kappa_bounds`` (at 0: no
+    drainage speed shape; at the upper bound: the curve form cannot follow the measured shape), when the shape does
+    not follow MPD (``perm_p`` > 0.05), when fewer than half of the folds choose the all-sites form, or when the
+    interval reaches 0 (the sections do not separate the shape from none)."""
+    lo, hi = (float(b) for b in ext.kappa_bounds)
+    every = np.ones(len(scope.sites), dtype=bool)
+    whole = recalibrate(ext, scope, cov, every)
+    kappa, form = float(whole["kappa"]), whole.get("form", ext.form)
+    fixed = ext if ext.form != "auto" else replace(ext, form=form)
+    sse = _sse_all_sites(fixed, whole, scope, cov)
+    rng = np.random.default_rng(0)
+    mpd = cov.loc[scope.sites, ext.mpd_column].to_numpy(float)
+    hits = 0
+    for _ in range(n_perm):
+        perm = cov.copy()
+        perm.loc[scope.sites, ext.mpd_column] = rng.permutation(mpd)
+        hits += _sse_all_sites(fixed, recalibrate(fixed, scope, perm, every), scope, perm) <= sse
+    perm_p = (1 + hits) / (1 + n_perm)
+    forms = {}
+    for f in folds:
+        forms[f.get("form", ext.form)] = forms.get(f.get("form", ext.form), 0) + 1
+    same = np.array([float(f["kappa"]) for f in folds if f.get("form", ext.form) == form], dtype=float)
+    se = float(np.sqrt((len(same) - 1) / len(same) * np.sum((same - same.mean()) ** 2))) if len(same) > 1 else np.nan
+    interval = [kappa - 1.96 * se, kappa + 1.96 * se]
+    eps = 1e-6 * (hi - lo)
+    if kappa <= lo + eps:
+        why = f"kappa at its 'no drainage' bound {lo:g}: the measured curves show no drainage speed shape"
+    elif kappa >= hi - eps:
+        why = f"kappa runs to its upper bound {hi:g}: the {form} form does not follow the measured speed shape"
+    elif perm_p > 0.05:
+        why = (
+            f"the speed shape does not follow MPD: with MPD permuted over the sites the fit is as good (permutation p "
+            f"{perm_p:.2g}); a shape common to the sites, not drainage through the macrotexture"
+        )
+    elif 2 * len(same) < len(folds):
+        why = f"the folds disagree on the curve form ({', '.join(f'{k} {n}' for k, n in sorted(forms.items()))})"
+    elif not np.isfinite(se) or interval[0] <= lo:
+        why = (
+            f"the sections do not pin kappa: its 95 % jackknife interval [{interval[0]:.3g}, {interval[1]:.3g}] "
+            f"reaches {lo:g} (no drainage)"
+        )
+    else:
+        why = None
+    return {
+        "extension": "DrainageIFI",
+        "parameter": "kappa",
+        "identifiable": why is None,
+        "why": why,
+        "kappa_all_sites": kappa,
+        "form_all_sites": form,
+        "folds": len(folds),
+        "forms": forms,
+        "kappa_median": float(np.median(same)) if len(same) else float("nan"),
+        "kappa_jackknife_se": se,
+        "kappa_interval_95": interval,
+        "perm_p": perm_p,
+    }
 
 
 #: Half-width (deg C) of the 95 % jackknife interval of the WLF reference temperature within which T_r counts as

@@ -34,11 +34,11 @@ def _fmt_ci(d, key):
     return f"{d[key]:.4f} [{lo:.4f}, {hi:.4f}]"
 
 
-def _interval(iv) -> str:
-    """``[lo, hi]`` to one decimal, or ``n/a`` (missing or not finite)."""
+def _interval(iv, fmt: str = ".1f") -> str:
+    """``[lo, hi]`` in the format ``fmt`` (one decimal), or ``n/a`` (missing or not finite)."""
     if not iv or not all(np.isfinite(x) for x in iv):
         return "n/a"
-    return f"[{iv[0]:.1f}, {iv[1]:.1f}]"
+    return f"[{iv[0]:{fmt}}, {iv[1]:{fmt}}]"
 
 
 def _fmt_group(group, n_show: int = 6) -> str:
@@ -141,7 +141,15 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         "",
     ]
     ident = gain.get("identifiability")
-    if ident:
+    if ident and ident.get("extension") == "DrainageIFI":
+        state = (
+            f"identified (kappa {ident['kappa_all_sites']:.3g} over all sites, {ident['form_all_sites']} form; "
+            f"95 % interval over the sections (jackknife) {_interval(ident.get('kappa_interval_95'), '.3g')})"
+            if ident.get("identifiable")
+            else f"not identifiable: {ident.get('why')}"
+        )
+        lines += [f"Drainage factor kappa of DrainageIFI: {state}.", ""]
+    elif ident:
         state = (
             f"identified (T_r {ident['t_ref_c_all_sites']:.1f} deg C over all sites, permutation p "
             f"{ident['perm_p']:.2g}; median over folds {ident['t_ref_c_median']:.1f} deg C; 95 % interval over "
