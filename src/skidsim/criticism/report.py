@@ -144,6 +144,7 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
     if ident and ident.get("extension") == "DrainageIFI":
         state = (
             f"identified (kappa {ident['kappa_all_sites']:.3g} over all sites, {ident['form_all_sites']} form; "
+            f"MPD permuted over the sites: p {ident['perm_p']:.2g}; "
             f"95 % interval over the sections (jackknife) {_interval(ident.get('kappa_interval_95'), '.3g')})"
             if ident.get("identifiable")
             else f"not identifiable: {ident.get('why')}"
