@@ -3,6 +3,7 @@ R^2 before and after with percentile bootstrap intervals over whole sites. Frict
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import asdict, replace
 
 import numpy as np
@@ -13,7 +14,14 @@ from .covariates import DEFAULT_EXCLUDE, score_table, site_covariates, texture_s
 from .crossval import folds, is_section_nested
 from .extensions import CovariateTerm, DrainageIFI, ExtendedModel, TemperatureShift
 from .options import DiagnosisOptions
-from .recalibration import predict_extended, recalibrate, refit_correction, refit_design, temperature_identifiability
+from .recalibration import (
+    _train_sse,
+    predict_extended,
+    recalibrate,
+    refit_correction,
+    refit_design,
+    temperature_identifiability,
+)
 from .residuals import LEVELS, require_columns
 from .scopes import Scope, centred_speed, make_scope, site_target, site_values
 
@@ -284,7 +292,7 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own
             return None
         folds = scopes["held_out_sites"]["extension"]["params_per_fold"]
         t = np.array([f["t_ref_c"] for f in folds], dtype=float)
-        se = float(np.sqrt((len(t) - 1) / len(t) * np.sum((t - t.mean()) ** 2))) if len(t) > 1 else float("nan")
+        se = _jackknife_se(t)
         temps = site_values(cov, ext.column, between.sites)
         temps = temps[np.isfinite(temps)]
         precision = t_ref_precision(se, (float(temps.min()), float(temps.max())) if temps.size else None)
@@ -307,10 +315,11 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own
     return None
 
 
-def _sse_all_sites(ext, params: dict, scope: Scope, cov: pd.DataFrame) -> float:
-    """Squared error (mu^2) of the extension fitted on every site of ``scope``, over all its rows."""
-    a = predict_extended(ext, params, scope, cov, np.ones(len(scope.sites), dtype=bool))
-    return float(np.sum((a - scope.rows["measured"].to_numpy(float)) ** 2))
+def _jackknife_se(values: np.ndarray) -> float:
+    """Leave-one-out (here: leave-one-section-out fold) jackknife standard error ``sqrt((k - 1)/k sum (x_j -
+    mean x)^2)`` of ``k`` fold estimates, in their unit; NaN for fewer than 2."""
+    x = np.asarray(values, dtype=float)
+    return float(np.sqrt((len(x) - 1) / len(x) * np.sum((x - x.mean()) ** 2))) if len(x) > 1 else float("nan")
 
 
 #: Permutations of the MPD column over the sites in :func:`drainage_identifiability` (p floor 1/50).
@@ -338,20 +347,19 @@ def drainage_identifiability(
     whole = recalibrate(ext, scope, cov, every)
     kappa, form = float(whole["kappa"]), whole.get("form", ext.form)
     fixed = ext if ext.form != "auto" else replace(ext, form=form)
-    sse = _sse_all_sites(fixed, whole, scope, cov)
+    sse = _train_sse(fixed, whole, scope, cov, every)
     rng = np.random.default_rng(0)
     mpd = cov.loc[scope.sites, ext.mpd_column].to_numpy(float)
     hits = 0
     for _ in range(n_perm):
         perm = cov.copy()
         perm.loc[scope.sites, ext.mpd_column] = rng.permutation(mpd)
-        hits += _sse_all_sites(fixed, recalibrate(fixed, scope, perm, every), scope, perm) <= sse
+        hits += _train_sse(fixed, recalibrate(fixed, scope, perm, every), scope, perm, every) <= sse
     perm_p = (1 + hits) / (1 + n_perm)
-    forms = {}
-    for f in folds:
-        forms[f.get("form", ext.form)] = forms.get(f.get("form", ext.form), 0) + 1
-    same = np.array([float(f["kappa"]) for f in folds if f.get("form", ext.form) == form], dtype=float)
-    se = float(np.sqrt((len(same) - 1) / len(same) * np.sum((same - same.mean()) ** 2))) if len(same) > 1 else np.nan
+    fold_forms = [f.get("form", ext.form) for f in folds]
+    forms = dict(Counter(fold_forms))
+    same = np.array([float(f["kappa"]) for f, fm in zip(folds, fold_forms) if fm == form], dtype=float)
+    se = _jackknife_se(same)
     interval = [kappa - 1.96 * se, kappa + 1.96 * se]
     eps = 1e-6 * (hi - lo)
     if kappa <= lo + eps:
