@@ -29,7 +29,9 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
 
 Prints a markdown table (per generator x kind: the median effect size, sd over sites of the effect's mean over
 20-70 km/h in mu, n seeds, named-top share, false naming share for none, gain
-established share among named) and writes ``<out>/rates.csv`` (one row per campaign) and ``<out>/table.md``.
+established share among named) and writes ``<out>/rates.csv`` (one row per campaign), ``<out>/table.md`` and
+``<out>/rates.png`` (the right answers and the gains as heatmaps, ``skidsim.plotting.diagnosis.plot_naming_rates``;
+``--figure-only CSV ...`` draws it from stored tables, e.g. a ``--screen-only`` run and a whole-diagnosis run).
 """
 
 from __future__ import annotations
@@ -218,6 +220,26 @@ def table(df: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def merge_rates(tables: list[pd.DataFrame]) -> pd.DataFrame:
+    """One row per (generator, kind, seed) from several rates.csv tables (e.g. ``--screen-only`` over every cell and
+    the whole diagnosis over the cells with a gain): the first table's row, with ``gain_established`` from the
+    first table that measured it. The named causes must agree (the screening is the diagnosis's first step)."""
+    key = ["generator", "kind", "seed"]
+    merged = tables[0].drop_duplicates(key).set_index(key)
+    merged["gain_established"] = merged["gain_established"].astype(object)  # a screening's column is all NaN
+    for t in tables[1:]:
+        t = t.drop_duplicates(key).set_index(key)
+        both = merged.index.intersection(t.index)
+        differ = both[(merged.loc[both, "named"].fillna("") != t.loc[both, "named"].fillna("")).to_numpy()]
+        if len(differ):
+            raise SystemExit(f"merge_rates: the named causes differ in {len(differ)} campaigns, e.g. {differ[0]}")
+        gain = t.loc[both, "gain_established"]
+        fill = merged.loc[both, "gain_established"].isna() & gain.notna()
+        merged.loc[both[fill.to_numpy()], "gain_established"] = gain[fill]
+        merged = pd.concat([merged, t.loc[t.index.difference(merged.index)]])
+    return merged.reset_index()
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-19")
@@ -238,7 +260,20 @@ def main(argv=None):
     )
     ap.add_argument("--out", default=str(ROOT / "results" / "diagnosis_rates"))
     ap.add_argument("--cache", default=str(ROOT / "results" / "diagnosis_rates" / "texture_cache"))
+    ap.add_argument(
+        "--figure-only",
+        nargs="+",
+        default=None,
+        metavar="CSV",
+        help="run nothing: draw <out>/rates.png from these rates.csv files (merge_rates)",
+    )
     a = ap.parse_args(argv)
+    if a.figure_only:
+        from skidsim.plotting.diagnosis import plot_naming_rates
+
+        Path(a.out).mkdir(parents=True, exist_ok=True)
+        print(plot_naming_rates(merge_rates([pd.read_csv(f) for f in a.figure_only]), Path(a.out) / "rates.png"))
+        return
     seeds = seed_range(a.seeds)
     gens = [g for g in a.generators.split(",") if g]
     kinds = [k for k in a.kinds.split(",") if k]
@@ -282,6 +317,9 @@ def main(argv=None):
     md = table(df)
     (out / "table.md").write_text(md + "\n")
     print(md)
+    from skidsim.plotting.diagnosis import plot_naming_rates
+
+    plot_naming_rates(df, out / "rates.png")
     print(
         f"{len(df)} campaigns, wall {time.perf_counter() - t0:.0f} s, median {df['wall_s'].median():.1f} s per "
         f"campaign (one process), permutations {int(df['n_permutations'].median())}"

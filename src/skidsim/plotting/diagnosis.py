@@ -162,3 +162,90 @@ def diagnosis_figures(result, out_dir) -> dict:
             result.predictions, out / "before_after.png"
         )
     return figs
+
+
+#: Goals of issue 33 for the rates: an effect named top in >= 80 % of its campaigns; a null campaign names no cause
+#: other than the texture model in >= 95 % (false naming <= 5 %); gain established where named (shown, no goal line).
+RATE_GOALS = {"effect": 0.80, "null": 0.95}
+
+
+def _bools(values) -> list[bool]:
+    """The booleans of a column read back from CSV (True/False, "True"/"False"; empty or NaN: not scored)."""
+    out = []
+    for v in values:
+        if isinstance(v, str):
+            if v.strip() in ("True", "False"):
+                out.append(v.strip() == "True")
+        elif v is not None and v == v:
+            out.append(bool(v))
+    return out
+
+
+def naming_rate_cells(rates: pd.DataFrame) -> pd.DataFrame:
+    """Per (generator, kind) of a rates table (one row per campaign, ``benchmarks/diagnosis_rates.py``): ``n`` scored
+    campaigns, ``right`` of them and ``share``; ``goal`` and ``met`` (share >= goal). A kind with a hidden effect,
+    and the ``none`` row of a source whose hidden effect is its section factors, is scored on ``named_top``; the
+    other ``none`` rows on ``false_category`` (right: no cause other than the texture model named). ``gain_n`` /
+    ``gain_right``: campaigns with a cause named whose gain at held-out sites was measured, and those where it is
+    established (``gain_established``)."""
+    rows = []
+    for (gen, kind), d in rates.groupby(["generator", "kind"], sort=False):
+        top = _bools(d["named_top"])
+        if top:
+            right, n, goal = sum(top), len(top), RATE_GOALS["effect"]
+        else:
+            false = _bools(d["false_category"])
+            right, n, goal = len(false) - sum(false), len(false), RATE_GOALS["null"]
+        gain = _bools(d["gain_established"]) if kind != "none" else []
+        share = right / n if n else float("nan")
+        rows.append(
+            dict(
+                generator=gen,
+                kind=kind,
+                n=n,
+                right=right,
+                share=share,
+                goal=goal,
+                met=bool(n) and share >= goal,
+                gain_n=len(gain),
+                gain_right=sum(gain),
+            )
+        )
+    return pd.DataFrame(rows)
+
+
+def plot_naming_rates(rates: pd.DataFrame, path) -> Path:
+    """Two heatmaps over kind (rows) x generator (columns) of a rates table: the share of campaigns where the
+    diagnosis is right (:func:`naming_rate_cells`; cells at their goal in bold, ``right / n`` written in each), and
+    the share where the named cause's gain at held-out sites is established (``-``: not measured; the second panel
+    only where some gain was measured: not from ``--screen-only``)."""
+    cells = naming_rate_cells(rates)
+    gens = list(dict.fromkeys(cells["generator"]))
+    kinds = list(dict.fromkeys(cells["kind"]))
+    at = {(r.kind, r.generator): r for r in cells.itertuples()}
+    panels = ("named", "gain") if cells["gain_n"].sum() else ("named",)
+    size = (2.2 + 1.2 * len(gens) * len(panels), 0.5 * len(kinds) + 2.0)
+    with figure(path, ncols=len(panels), figsize=size, squeeze=False) as (fig, axes):
+        for ax, what in zip(axes[0], panels):
+            m = np.full((len(kinds), len(gens)), np.nan)
+            for i, k in enumerate(kinds):
+                for j, g in enumerate(gens):
+                    r = at.get((k, g))
+                    if r is None:
+                        continue
+                    num, den = (r.right, r.n) if what == "named" else (r.gain_right, r.gain_n)
+                    if den:
+                        m[i, j] = num / den
+                    text = f"{num}/{den}" if den else "-"
+                    bold = what == "named" and r.met
+                    ax.text(j, i, text, ha="center", va="center", fontsize=8, fontweight="bold" if bold else "normal")
+            ax.imshow(m, cmap="RdYlGn", vmin=0.5, vmax=1.0, aspect="auto")  # below 50 %: the reddest
+            ax.set_xticks(range(len(gens)), gens, rotation=30, ha="right")
+            ax.set_yticks(range(len(kinds)), kinds)
+            ax.grid(False)
+            ax.set_title(
+                "right answer (bold: goal met, 80 % / nulls 95 %)"
+                if what == "named"
+                else "gain at held-out sites established, where named"
+            )
+    return Path(path)

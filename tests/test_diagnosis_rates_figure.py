@@ -1,0 +1,67 @@
+"""The rates figure of issue 33 (``skidsim.plotting.diagnosis.plot_naming_rates``) and the merge of rates tables
+(``benchmarks/diagnosis_rates.py``): what each cell counts, on hand-made tables read back as from CSV."""
+
+from __future__ import annotations
+
+import io
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skidsim.plotting.diagnosis import naming_rate_cells, plot_naming_rates
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+# one row per campaign, as benchmarks/diagnosis_rates.py writes rates.csv (empty: not scored)
+CSV = """generator,kind,seed,named,named_top,false_category,gain_established
+chips,none,0,profile_MPD (between-site x_speed),,False,
+chips,none,1,temperature_c (between-site main),,True,
+chips,none,2,,,False,
+chips,texture_speed,0,macro_Sdq (between-site main),True,,True
+chips,texture_speed,1,raw_Sdq (between-site main),False,,False
+chips,texture_speed,2,texture_model[curved] (between-site x_speed),True,,
+chips,texture_speed,3,macro_Sdr (between-site main),True,,True
+chips,texture_speed,4,texture PCs 1-3 (between-site x_speed),True,,True
+chips+sectionlatent,none,0,section (between-site main),True,,
+chips+sectionlatent,none,1,binder (between-site main),False,,
+"""
+
+
+def rates() -> pd.DataFrame:
+    return pd.read_csv(io.StringIO(CSV))
+
+
+def test_each_cell_counts_the_right_answers_of_its_kind():
+    cells = naming_rate_cells(rates()).set_index(["generator", "kind"])
+    null = cells.loc[("chips", "none")]  # right: no cause other than the texture model (false_category False)
+    assert (null["n"], null["right"], null["goal"], bool(null["met"])) == (3, 2, 0.95, False)
+    eff = cells.loc[("chips", "texture_speed")]  # 4 of 5 named top: the 80 % goal met exactly
+    assert (eff["n"], eff["right"], bool(eff["met"])) == (5, 4, True)
+    assert eff["share"] == pytest.approx(0.8)
+    assert (eff["gain_n"], eff["gain_right"]) == (4, 3)  # the campaign without a measured gain is not counted
+    latent = cells.loc[("chips+sectionlatent", "none")]  # its hidden effect is the section factors: named_top
+    assert (latent["n"], latent["right"], latent["gain_n"]) == (2, 1, 0)
+
+
+def test_the_figure_is_written_with_and_without_gains(tmp_path):
+    r = rates()
+    assert plot_naming_rates(r, tmp_path / "rates.png").stat().st_size > 0
+    screen_only = r.assign(gain_established=np.nan)
+    assert plot_naming_rates(screen_only, tmp_path / "screen.png").stat().st_size > 0
+
+
+def test_merge_takes_the_named_causes_once_and_the_gains_where_measured():
+    from diagnosis_rates import merge_rates
+
+    screen = rates().assign(gain_established=np.nan)
+    whole = rates()[rates()["kind"] == "texture_speed"]
+    merged = merge_rates([screen, whole])
+    assert len(merged) == len(screen)
+    cells = naming_rate_cells(merged).set_index(["generator", "kind"])
+    assert (cells.loc[("chips", "texture_speed"), "gain_right"], cells.loc[("chips", "none"), "gain_n"]) == (3, 0)
+    other = whole.assign(named="aadt (between-site main)")
+    with pytest.raises(SystemExit, match="named causes differ in 5 campaigns"):
+        merge_rates([screen, other])
