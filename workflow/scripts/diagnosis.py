@@ -23,7 +23,13 @@ log.info(
 )
 result = criticism.diagnose(inputs, options)
 figs = diagnosis_figures(result, snakemake.output.figures)
-criticism.write_outputs(Path(snakemake.output.causes).parent, result.residuals, result.causes, result.gain, figs)
+criticism.write_outputs(
+    Path(snakemake.output.causes).parent, result.residuals, result.causes, result.gain, figs, untested=result.untested
+)
+for column, why in result.untested.items():  # too few values is worth a warning; constants and identifiers are not
+    (log.warning if why.startswith("values at") else log.info)(
+        "sites.csv column %s not tested as a cause: %s", column, why
+    )
 top = result.named
 log.info(
     "named cause: %s",

@@ -45,6 +45,7 @@ from .covariates import (
     find_mpd_column,
     site_covariates,
     texture_clusters,
+    untested_columns,
 )
 from .extensions import CovariateTerm, ExtendedModel, apply_extension
 from .fdr import adjust_pvalues, auto_permutations
@@ -73,6 +74,7 @@ __all__ = [
     "write_outputs",
     "read_workflow_inputs",
     "site_covariates",
+    "untested_columns",
     "adjust_pvalues",
     "auto_permutations",
     "order_by_refinement",
@@ -96,8 +98,8 @@ __all__ = [
 @dataclass
 class DiagnosisResult:
     """Everything :func:`diagnose` found: residual table, ranked causes, the named cause (or None), the gain dict
-    (gain.json), held-out predictions before/after per scope, the candidate covariates per site and the
-    added-variable data of a texture-adjusted named cause."""
+    (gain.json), held-out predictions before/after per scope, the candidate covariates per site, the
+    added-variable data of a texture-adjusted named cause and the sites.csv columns not tested ({column: why})."""
 
     residuals: pd.DataFrame
     causes: list
@@ -106,6 +108,7 @@ class DiagnosisResult:
     predictions: pd.DataFrame  # held-out rows: scope, site, speed_kmh, kind, measured, before, after
     covariates: pd.DataFrame = field(default_factory=pd.DataFrame)
     added_variable: pd.DataFrame = field(default_factory=pd.DataFrame)  # site, covariate_adj, measured_adj
+    untested: dict = field(default_factory=dict)
 
 
 def _beyond_lead_texture(top, residuals, cov, texture, lead, options) -> pd.DataFrame | None:
@@ -150,9 +153,11 @@ def diagnose(
     )
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture, exclude=roles.exclude)
+    untested = untested_columns(sites, exclude=roles.exclude)
     if top is None:
         gain, preds = baseline_gain(res, options)
-        return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, pd.DataFrame())
+        gain = {**gain, "texture_model": texture_model}
+        return DiagnosisResult(res, causes, top, gain, preds, cov, pd.DataFrame(), untested)
     term = texture_model_term(top, res, sites, texture, pcs, inputs.prediction_features, roles, bin_kmh)
     model = apply_extension(top, sites, texture, speed_bin_kmh=bin_kmh, exclude=roles.exclude, texture_design=term)
     if isinstance(model.extension, CovariateTerm) and model.fallback is None:  # not a physical extension (IFI, WLF)
@@ -161,4 +166,4 @@ def diagnose(
         cov = cov.join(pd.Series([r[0] for r in term.design], index=list(term.sites), name=top.variable))
     gain, preds = evaluate_extension(model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude)
     av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
-    return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, av)
+    return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, av, untested)

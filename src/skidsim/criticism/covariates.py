@@ -27,30 +27,57 @@ class CandidateRoles:
     mpd_column: str | None = None
 
 
+#: A sites.csv column with values at fewer than this share of the sites is not a candidate: its mean-filled rest
+#: would be tested as if it were measured (docs/model-criticism.md, section 2).
+MIN_PRESENT_SHARE = 0.5
+
+
+def _sites_column(col: pd.Series, name: str, n: int) -> tuple[pd.Series | None, str]:
+    """One sites.csv column as a candidate: (values, "numeric" | "categorical"), or (None, why it is not one)."""
+    present = int(col.notna().sum())
+    if present < MIN_PRESENT_SHARE * n:
+        return None, f"values at {present} of {n} sites (fewer than {MIN_PRESENT_SHARE:.0%})"
+    num = pd.to_numeric(col, errors="coerce")
+    is_num = col.dtype == bool or (num.notna().sum() == present and present > 0)
+    if is_num and name != "section":
+        v = num.astype(float)
+        if np.nanstd(v.to_numpy()) == 0:
+            return None, "one value at every site"
+        return v.fillna(v.mean()), "numeric"
+    v = col.astype(str).where(col.notna(), "NA")
+    k = v.nunique()
+    if k < 2:
+        return None, "one value at every site"
+    if k >= n:
+        return None, "a different value at every site (an identifier, not a grouping)"
+    return v, "categorical"
+
+
 def _sites_columns(s: pd.DataFrame, exclude) -> tuple[dict, dict]:
     out, info = {}, {}
-    n = len(s)
     excl = {e.lower() for e in exclude}
     for c in s.columns:
         if str(c).lower() in excl:
             continue
-        col = s[c]
-        num = pd.to_numeric(col, errors="coerce")
-        is_num = col.dtype == bool or (num.notna().sum() == col.notna().sum() and col.notna().any())
-        if is_num and str(c) != "section":
-            v = num.astype(float)
-            if v.isna().all() or np.nanstd(v.to_numpy()) == 0:
-                continue
-            out[str(c)] = v.fillna(v.mean())
-            info[str(c)] = ("sites", "numeric")
-        else:
-            v = col.astype(str).where(col.notna(), "NA")
-            k = v.nunique()
-            if k < 2 or k >= n:
-                continue
+        v, dtype = _sites_column(s[c], str(c), len(s))
+        if v is not None:
             out[str(c)] = v
-            info[str(c)] = ("sites", "categorical")
+            info[str(c)] = ("sites", dtype)
     return out, info
+
+
+def untested_columns(sites: pd.DataFrame, *, exclude=DEFAULT_EXCLUDE) -> dict[str, str]:
+    """The sites.csv columns (but ``exclude``, identifiers and paths) that are not candidate causes, each with why:
+    values at fewer than half the sites, one value at every site, or a different value at every site."""
+    s = sites.set_index(sites["site"].astype(str)) if "site" in sites.columns else sites
+    excl = {e.lower() for e in exclude}
+    out = {}
+    for c in s.columns:
+        if str(c).lower() not in excl:
+            v, why = _sites_column(s[c], str(c), len(s))
+            if v is None:
+                out[str(c)] = why
+    return out
 
 
 def _texture_columns(texture_wide: pd.DataFrame, index: pd.Index, out: dict, info: dict) -> None:
@@ -75,8 +102,10 @@ def site_covariates(
     """All candidate covariates per site (index = site) and their source/dtype: {name: (source, dtype)}.
 
     sites.csv: every column but ``exclude``; booleans and numbers are numeric, anything else categorical;
-    constant columns and categoricals with one level per site (identifiers) are dropped; missing numeric values are
-    replaced by the column mean. Texture table (index = site or a 'site' column): every numeric column.
+    constant columns, categoricals with one level per site (identifiers) and columns with values at fewer than
+    half the sites (``MIN_PRESENT_SHARE``) are dropped (:func:`untested_columns` says which and why); missing
+    numeric values are replaced by the column mean, missing categories are the level "NA". Texture table (index =
+    site or a 'site' column): every numeric column.
     """
     require_columns(sites, ("site", "section"), "sites table")
     s = sites.assign(site=sites["site"].astype(str)).set_index("site")

@@ -240,22 +240,39 @@ def _figure_lines(figures: dict | None, out: Path) -> list[str]:
     return lines
 
 
-def report_markdown(clist: list[dict], gain: dict, figures: dict | None, out: Path, top_n: int = 15) -> str:
-    """The text of report.md: named cause, gains, the top ``top_n`` candidates, figures (paths relative to
-    ``out``)."""
+def _untested_lines(untested: dict | None) -> list[str]:
+    if not untested:
+        return []
+    lines = ["", "## sites.csv columns not tested as causes", ""]
+    return lines + [f"* `{c}`: {why}" for c, why in untested.items()]
+
+
+def report_markdown(
+    clist: list[dict], gain: dict, figures: dict | None, out: Path, top_n: int = 15, untested: dict | None = None
+) -> str:
+    """The text of report.md: named cause, gains, the top ``top_n`` candidates, the sites.csv columns not tested
+    (``untested``: {column: why}), figures (paths relative to ``out``)."""
     top = clist[0] if clist and clist[0]["significant"] else None
     lines = ["# Model criticism", ""] + _named_lines(top, gain) + _gain_lines(gain) + _texture_model_lines(gain)
-    lines += _candidate_lines(clist, top_n)
+    lines += _candidate_lines(clist, top_n) + _untested_lines(untested)
     return "\n".join(lines + _figure_lines(figures, out)) + "\n"
 
 
 def write_outputs(
-    out_dir, residuals: pd.DataFrame, causes: list, gain: dict, figures: dict | None = None, *, top_n: int = 15
+    out_dir,
+    residuals: pd.DataFrame,
+    causes: list,
+    gain: dict,
+    figures: dict | None = None,
+    *,
+    top_n: int = 15,
+    untested: dict | None = None,
 ) -> dict:
     """Write residuals.parquet, causes.json, gain.json and report.md to ``out_dir`` (each atomically).
 
     ``figures``: {caption: path of an existing PNG}; embedded in report.md with paths relative to ``out_dir``.
-    Returns {name: path}."""
+    ``untested``: the sites.csv columns not tested as causes, {column: why}
+    (:func:`skidsim.criticism.covariates.untested_columns`), listed in report.md. Returns {name: path}."""
     out = Path(out_dir)
     clist = [c.as_dict() if isinstance(c, Cause) else dict(c) for c in causes]
     for rank, c in enumerate(clist, 1):
@@ -265,5 +282,5 @@ def write_outputs(
         "causes": write_text(out / "causes.json", json.dumps(json_safe(clist), indent=2) + "\n"),
         "gain": write_text(out / "gain.json", json.dumps(json_safe(gain), indent=2) + "\n"),
     }
-    paths["report"] = write_text(out / "report.md", report_markdown(clist, gain, figures, out, top_n))
+    paths["report"] = write_text(out / "report.md", report_markdown(clist, gain, figures, out, top_n, untested))
     return paths
