@@ -55,6 +55,25 @@ def test_untested_columns_say_why_and_match_the_candidates():
     assert np.allclose(cov["half_measured"].to_numpy()[len(measured) :], measured.mean())
 
 
+def test_texture_columns_with_too_few_values_are_not_candidates_either():
+    s = sites_table()
+    n = len(s)
+    tex = pd.DataFrame(
+        {
+            "site": s["site"],
+            "macro_Sq": np.linspace(0.3, 0.9, n),
+            "micro_Sq_top": np.where(np.arange(n) % 4 == 0, 0.02, np.nan),  # 9 of 36 scans had tops
+            "spacing": 0.05,
+            "method": "LS-40",  # text: not a texture parameter at all
+        }
+    )
+    why = cr.untested_columns(s, tex)
+    assert why["micro_Sq_top"] == "texture table: values at 9 of 36 sites (fewer than 50%)"
+    assert why["spacing"] == "texture table: one value at every site" and "method" not in why
+    cov, info = cr.site_covariates(s, tex)
+    assert [c for c in cov.columns if info[c][0] == "texture"] == ["macro_Sq"]
+
+
 def test_a_sparsely_measured_column_is_not_a_cause_and_the_report_lists_it(tmp_path):
     tables, _ = make_campaign(seed=2, effect=None)
     sites = tables["sites"].copy()
@@ -67,6 +86,6 @@ def test_a_sparsely_measured_column_is_not_a_cause_and_the_report_lists_it(tmp_p
     assert not any(c.variable == "pavement_temp_c" for c in r.causes)
     cr.write_outputs(tmp_path, r.residuals, r.causes, r.gain, untested=r.untested)
     text = (tmp_path / "report.md").read_text()
-    assert "## sites.csv columns not tested as causes" in text
+    assert "## Columns not tested as causes (sites.csv, texture table)" in text
     assert f"* `pavement_temp_c`: values at 6 of {n} sites (fewer than 50%)" in text
     assert "not tested as causes" not in report_markdown([], {}, None, Path("."))

@@ -153,7 +153,7 @@ def diagnose(
     )
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture, exclude=roles.exclude)
-    untested = untested_columns(sites, exclude=roles.exclude)
+    untested = untested_columns(sites, texture, exclude=roles.exclude)
     if top is None:
         gain, preds = baseline_gain(res, options)
         gain = {**gain, "texture_model": texture_model}

@@ -32,6 +32,12 @@ class CandidateRoles:
 MIN_PRESENT_SHARE = 0.5
 
 
+def _constant(v: pd.Series) -> bool:
+    """One value at every site with a value, up to rounding (a mean of equal floats is not always that float)."""
+    a = v.to_numpy(dtype=float)
+    return bool(np.nanstd(a) <= 1e-12 * max(1.0, float(np.nanmax(np.abs(a)))))
+
+
 def _sites_column(col: pd.Series, name: str, n: int) -> tuple[pd.Series | None, str]:
     """One sites.csv column as a candidate: (values, "numeric" | "categorical"), or (None, why it is not one)."""
     present = int(col.notna().sum())
@@ -41,7 +47,7 @@ def _sites_column(col: pd.Series, name: str, n: int) -> tuple[pd.Series | None, 
     is_num = col.dtype == bool or (num.notna().sum() == present and present > 0)
     if is_num and name != "section":
         v = num.astype(float)
-        if np.nanstd(v.to_numpy()) == 0:
+        if _constant(v):
             return None, "one value at every site"
         return v.fillna(v.mean()), "numeric"
     v = col.astype(str).where(col.notna(), "NA")
@@ -66,9 +72,12 @@ def _sites_columns(s: pd.DataFrame, exclude) -> tuple[dict, dict]:
     return out, info
 
 
-def untested_columns(sites: pd.DataFrame, *, exclude=DEFAULT_EXCLUDE) -> dict[str, str]:
-    """The sites.csv columns (but ``exclude``, identifiers and paths) that are not candidate causes, each with why:
-    values at fewer than half the sites, one value at every site, or a different value at every site."""
+def untested_columns(
+    sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *, exclude=DEFAULT_EXCLUDE
+) -> dict[str, str]:
+    """The sites.csv columns (but ``exclude``, identifiers and paths) and numeric texture-table columns that are
+    not candidate causes, each with why: values at fewer than half the sites, one value at every site, or (sites.csv)
+    a different value at every site."""
     s = sites.set_index(sites["site"].astype(str)) if "site" in sites.columns else sites
     excl = {e.lower() for e in exclude}
     out = {}
@@ -77,23 +86,43 @@ def untested_columns(sites: pd.DataFrame, *, exclude=DEFAULT_EXCLUDE) -> dict[st
             v, why = _sites_column(s[c], str(c), len(s))
             if v is None:
                 out[str(c)] = why
+    if texture_wide is not None:
+        for c, v in _texture_table(texture_wide, s.index.astype(str)).items():
+            why = _texture_why(v)
+            if why is not None and c not in out and str(c).lower() not in excl:
+                out[c] = why
     return out
 
 
-def _texture_columns(texture_wide: pd.DataFrame, index: pd.Index, out: dict, info: dict) -> None:
+def _texture_table(texture_wide: pd.DataFrame, index: pd.Index) -> dict[str, pd.Series]:
+    """The numeric columns of the texture table on the sites ``index`` (NaN where a site has no value)."""
     t = texture_wide.copy()
     if "site" in t.columns:
         t = t.assign(site=t["site"].astype(str)).set_index("site")
     t.index = t.index.astype(str)
+    out = {}
     for c in t.columns:
         v = pd.to_numeric(t[c], errors="coerce")
-        if v.notna().sum() == 0 or str(c) in out:
-            continue
-        v = v.reindex(index)
-        if v.isna().all() or np.nanstd(v.to_numpy()) == 0:
-            continue
-        out[str(c)] = v.fillna(v.mean()).astype(float)
-        info[str(c)] = ("texture", "numeric")
+        if v.notna().sum():  # a text column (a method's name, a flag) is not a texture parameter
+            out[str(c)] = v.reindex(index)
+    return out
+
+
+def _texture_why(v: pd.Series) -> str | None:
+    """Why a texture column (values per site, NaN: none) is not a candidate, or None."""
+    present, n = int(v.notna().sum()), len(v)
+    if present < MIN_PRESENT_SHARE * n:
+        return f"texture table: values at {present} of {n} sites (fewer than {MIN_PRESENT_SHARE:.0%})"
+    if _constant(v):
+        return "texture table: one value at every site"
+    return None
+
+
+def _texture_columns(texture_wide: pd.DataFrame, index: pd.Index, out: dict, info: dict) -> None:
+    for c, v in _texture_table(texture_wide, index).items():
+        if c not in out and _texture_why(v) is None:
+            out[c] = v.fillna(v.mean()).astype(float)
+            info[c] = ("texture", "numeric")
 
 
 def site_covariates(

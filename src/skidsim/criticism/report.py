@@ -243,7 +243,7 @@ def _figure_lines(figures: dict | None, out: Path) -> list[str]:
 def _untested_lines(untested: dict | None) -> list[str]:
     if not untested:
         return []
-    lines = ["", "## sites.csv columns not tested as causes", ""]
+    lines = ["", "## Columns not tested as causes (sites.csv, texture table)", ""]
     return lines + [f"* `{c}`: {why}" for c, why in untested.items()]
 
 
