@@ -27,8 +27,8 @@ class CandidateRoles:
     mpd_column: str | None = None
 
 
-#: A sites.csv column with values at fewer than this share of the sites is not a candidate: its mean-filled rest
-#: would be tested as if it were measured (docs/model-criticism.md, section 2).
+#: A column (sites.csv or texture table) with values at fewer than this share of the sites is not a candidate: its
+#: mean-filled rest would be tested as if it were measured (docs/model-criticism.md, section 2).
 MIN_PRESENT_SHARE = 0.5
 
 
