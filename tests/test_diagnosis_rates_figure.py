@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from skidsim.plotting.diagnosis import naming_rate_cells, plot_naming_rates
+from skidsim.plotting.diagnosis import naming_rate_cells, plot_naming_rates, wilson_interval
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
@@ -44,6 +44,24 @@ def test_each_cell_counts_the_right_answers_of_its_kind():
     assert (eff["gain_n"], eff["gain_right"]) == (4, 3)  # the campaign without a measured gain is not counted
     latent = cells.loc[("chips+sectionlatent", "none")]  # its hidden effect is the section factors: named_top
     assert (latent["n"], latent["right"], latent["gain_n"]) == (2, 1, 0)
+
+
+@pytest.mark.parametrize("k,n", [(15, 20), (20, 20), (0, 20), (1, 3), (13, 20)])
+def test_the_wilson_interval_matches_statsmodels(k, n):
+    from statsmodels.stats.proportion import proportion_confint
+
+    lo, hi = proportion_confint(k, n, alpha=0.05, method="wilson")
+    assert wilson_interval(k, n) == pytest.approx((lo, hi), abs=1e-9)
+
+
+def test_twenty_campaigns_cannot_tell_75_from_80_percent():
+    cells = naming_rate_cells(rates()).set_index(["generator", "kind"])
+    eff = cells.loc[("chips", "texture_speed")]  # 4 / 5: Wilson [0.376, 0.964]
+    assert (eff["share_low"], eff["share_high"]) == pytest.approx((0.3755, 0.9638), abs=1e-4)
+    assert not eff["goal_excluded"]
+    low, high = wilson_interval(15, 20)
+    assert (round(low, 2), round(high, 2)) == (0.53, 0.89) and high > 0.8  # 15 / 20 does not show a miss of 80 %
+    assert wilson_interval(8, 20)[1] < 0.8  # 8 / 20 does
 
 
 def test_the_figure_is_written_with_and_without_gains(tmp_path):

@@ -181,13 +181,25 @@ def _bools(values) -> list[bool]:
     return out
 
 
+def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval of a share ``k / n`` (95 % by default; Wilson 1927): the range of true rates that 20
+    campaigns cannot tell apart from the one measured, e.g. 15 / 20 -> [0.53, 0.89]. (nan, nan) for n = 0."""
+    if n == 0:
+        return float("nan"), float("nan")
+    p, z2 = k / n, z * z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = z * np.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
+    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
+
+
 def naming_rate_cells(rates: pd.DataFrame) -> pd.DataFrame:
     """Per (generator, kind) of a rates table (one row per campaign, ``benchmarks/diagnosis_rates.py``): ``n`` scored
-    campaigns, ``right`` of them and ``share``; ``goal`` and ``met`` (share >= goal). A kind with a hidden effect,
-    and the ``none`` row of a source whose hidden effect is its section factors, is scored on ``named_top``; the
-    other ``none`` rows on ``false_category`` (right: no cause other than the texture model named). ``gain_n`` /
-    ``gain_right``: campaigns with a cause named whose gain at held-out sites was measured, and those where it is
-    established (``gain_established``)."""
+    campaigns, ``right`` of them, ``share`` and its 95 % Wilson interval (``share_low``, ``share_high``); ``goal``,
+    ``met`` (share >= goal) and ``goal_excluded`` (the interval lies below the goal: shown to miss it). A kind with
+    a hidden effect, and the ``none`` row of a source whose hidden effect is its section factors, is scored on
+    ``named_top``; the other ``none`` rows on ``false_category`` (right: no cause other than the texture model
+    named). ``gain_n`` / ``gain_right``: campaigns with a cause named whose gain at held-out sites was measured, and
+    those where it is established (``gain_established``)."""
     rows = []
     for (gen, kind), d in rates.groupby(["generator", "kind"], sort=False):
         top = _bools(d["named_top"])
@@ -198,6 +210,7 @@ def naming_rate_cells(rates: pd.DataFrame) -> pd.DataFrame:
             right, n, goal = len(false) - sum(false), len(false), RATE_GOALS["null"]
         gain = _bools(d["gain_established"]) if kind != "none" else []
         share = right / n if n else float("nan")
+        low, high = wilson_interval(right, n)
         rows.append(
             dict(
                 generator=gen,
@@ -205,8 +218,11 @@ def naming_rate_cells(rates: pd.DataFrame) -> pd.DataFrame:
                 n=n,
                 right=right,
                 share=share,
+                share_low=low,
+                share_high=high,
                 goal=goal,
                 met=bool(n) and share >= goal,
+                goal_excluded=bool(n) and high < goal,
                 gain_n=len(gain),
                 gain_right=sum(gain),
             )
@@ -216,7 +232,8 @@ def naming_rate_cells(rates: pd.DataFrame) -> pd.DataFrame:
 
 def plot_naming_rates(rates: pd.DataFrame, path) -> Path:
     """Two heatmaps over kind (rows) x generator (columns) of a rates table: the share of campaigns where the
-    diagnosis is right (:func:`naming_rate_cells`; cells at their goal in bold, ``right / n`` written in each), and
+    diagnosis is right (:func:`naming_rate_cells`; cells at their goal in bold, ``right / n`` and the 95 % Wilson
+    interval written in each), and
     the share where the named cause's gain at held-out sites is established (``-``: not measured; the second panel
     only where some gain was measured: not from ``--screen-only``)."""
     cells = naming_rate_cells(rates)
@@ -237,8 +254,10 @@ def plot_naming_rates(rates: pd.DataFrame, path) -> Path:
                     if den:
                         m[i, j] = num / den
                     text = f"{num}/{den}" if den else "-"
+                    if what == "named" and den:  # the 95 % Wilson interval: 20 campaigns pin a rate only so far
+                        text += f"\n[{100 * r.share_low:.0f}, {100 * r.share_high:.0f}] %"
                     bold = what == "named" and r.met
-                    ax.text(j, i, text, ha="center", va="center", fontsize=8, fontweight="bold" if bold else "normal")
+                    ax.text(j, i, text, ha="center", va="center", fontsize=7, fontweight="bold" if bold else "normal")
             ax.imshow(m, cmap="RdYlGn", vmin=0.5, vmax=1.0, aspect="auto")  # below 50 %: the reddest
             ax.set_xticks(range(len(gens)), gens, rotation=30, ha="right")
             ax.set_yticks(range(len(kinds)), kinds)
