@@ -171,7 +171,9 @@ def run_one(args: tuple) -> dict:
 
 
 def share(x) -> str:
-    x = [bool(v) for v in x if v is not None and v == v]
+    from skidsim.plotting.diagnosis import scored_bools
+
+    x = scored_bools(x)
     return f"{sum(x)} / {len(x)}" if x else "-"
 
 

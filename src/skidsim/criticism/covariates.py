@@ -59,41 +59,6 @@ def _sites_column(col: pd.Series, name: str, n: int) -> tuple[pd.Series | None, 
     return v, "categorical"
 
 
-def _sites_columns(s: pd.DataFrame, exclude) -> tuple[dict, dict]:
-    out, info = {}, {}
-    excl = {e.lower() for e in exclude}
-    for c in s.columns:
-        if str(c).lower() in excl:
-            continue
-        v, dtype = _sites_column(s[c], str(c), len(s))
-        if v is not None:
-            out[str(c)] = v
-            info[str(c)] = ("sites", dtype)
-    return out, info
-
-
-def untested_columns(
-    sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *, exclude=DEFAULT_EXCLUDE
-) -> dict[str, str]:
-    """The sites.csv columns (but ``exclude``, identifiers and paths) and numeric texture-table columns that are
-    not candidate causes, each with why: values at fewer than half the sites, one value at every site, or (sites.csv)
-    a different value at every site."""
-    s = sites.set_index(sites["site"].astype(str)) if "site" in sites.columns else sites
-    excl = {e.lower() for e in exclude}
-    out = {}
-    for c in s.columns:
-        if str(c).lower() not in excl:
-            v, why = _sites_column(s[c], str(c), len(s))
-            if v is None:
-                out[str(c)] = why
-    if texture_wide is not None:
-        for c, v in _texture_table(texture_wide, s.index.astype(str)).items():
-            why = _texture_why(v)
-            if why is not None and c not in out and str(c).lower() not in excl:
-                out[c] = why
-    return out
-
-
 def _texture_table(texture_wide: pd.DataFrame, index: pd.Index) -> dict[str, pd.Series]:
     """The numeric columns of the texture table on the sites ``index`` (NaN where a site has no value)."""
     t = texture_wide.copy()
@@ -118,11 +83,43 @@ def _texture_why(v: pd.Series) -> str | None:
     return None
 
 
-def _texture_columns(texture_wide: pd.DataFrame, index: pd.Index, out: dict, info: dict) -> None:
-    for c, v in _texture_table(texture_wide, index).items():
-        if c not in out and _texture_why(v) is None:
+def _sorted_columns(sites: pd.DataFrame, texture_wide, exclude) -> tuple[pd.Index, dict, dict, dict]:
+    """Both tables' columns sorted into candidates and the rest: (site index, {name: values}, {name: (source,
+    dtype)}, {name: why not a candidate})."""
+    require_columns(sites, ("site", "section"), "sites table")
+    s = sites.assign(site=sites["site"].astype(str)).set_index("site")
+    if s.index.duplicated().any():
+        raise InputError("sites table", "unique site names", column="site", got=list(s.index[s.index.duplicated()][:3]))
+    out, info, why = {}, {}, {}
+    excl = {e.lower() for e in exclude}
+    for c in s.columns:
+        if str(c).lower() in excl:
+            continue
+        v, dtype = _sites_column(s[c], str(c), len(s))
+        if v is None:
+            why[str(c)] = dtype
+        else:
+            out[str(c)] = v
+            info[str(c)] = ("sites", dtype)
+    for c, v in (_texture_table(texture_wide, s.index) if texture_wide is not None else {}).items():
+        if c in out:  # a sites.csv column of that name is the candidate
+            continue
+        reason = _texture_why(v)
+        if reason is None:
             out[c] = v.fillna(v.mean()).astype(float)
             info[c] = ("texture", "numeric")
+        else:
+            why.setdefault(c, reason)
+    return s.index, out, info, why
+
+
+def untested_columns(
+    sites: pd.DataFrame, texture_wide: pd.DataFrame | None = None, *, exclude=DEFAULT_EXCLUDE
+) -> dict[str, str]:
+    """The sites.csv columns (but ``exclude``, identifiers and paths) and numeric texture-table columns that are
+    not candidate causes of :func:`site_covariates`, each with why: values at fewer than half the sites, one value
+    at every site, or (sites.csv) a different value at every site."""
+    return _sorted_columns(sites, texture_wide, exclude)[3]
 
 
 def site_covariates(
@@ -134,16 +131,10 @@ def site_covariates(
     constant columns, categoricals with one level per site (identifiers) and columns with values at fewer than
     half the sites (``MIN_PRESENT_SHARE``) are dropped (:func:`untested_columns` says which and why); missing
     numeric values are replaced by the column mean, missing categories are the level "NA". Texture table (index =
-    site or a 'site' column): every numeric column.
+    site or a 'site' column): every numeric column, under the same rules.
     """
-    require_columns(sites, ("site", "section"), "sites table")
-    s = sites.assign(site=sites["site"].astype(str)).set_index("site")
-    if s.index.duplicated().any():
-        raise InputError("sites table", "unique site names", column="site", got=list(s.index[s.index.duplicated()][:3]))
-    out, info = _sites_columns(s, exclude)
-    if texture_wide is not None:
-        _texture_columns(texture_wide, s.index, out, info)
-    return pd.DataFrame(out, index=s.index), info
+    index, out, info, _ = _sorted_columns(sites, texture_wide, exclude)
+    return pd.DataFrame(out, index=index), info
 
 
 def names_temperature(name: str, dtype: str) -> bool:

@@ -169,7 +169,7 @@ def diagnosis_figures(result, out_dir) -> dict:
 RATE_GOALS = {"effect": 0.80, "null": 0.95}
 
 
-def _bools(values) -> list[bool]:
+def scored_bools(values) -> list[bool]:
     """The booleans of a column read back from CSV (True/False, "True"/"False"; empty or NaN: not scored)."""
     out = []
     for v in values:
@@ -202,13 +202,13 @@ def naming_rate_cells(rates: pd.DataFrame) -> pd.DataFrame:
     those where it is established (``gain_established``)."""
     rows = []
     for (gen, kind), d in rates.groupby(["generator", "kind"], sort=False):
-        top = _bools(d["named_top"])
+        top = scored_bools(d["named_top"])
         if top:
             right, n, goal = sum(top), len(top), RATE_GOALS["effect"]
         else:
-            false = _bools(d["false_category"])
+            false = scored_bools(d["false_category"])
             right, n, goal = len(false) - sum(false), len(false), RATE_GOALS["null"]
-        gain = _bools(d["gain_established"]) if kind != "none" else []
+        gain = scored_bools(d["gain_established"]) if kind != "none" else []
         share = right / n if n else float("nan")
         low, high = wilson_interval(right, n)
         rows.append(
