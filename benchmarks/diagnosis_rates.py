@@ -2,7 +2,7 @@
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/diagnosis_rates.py --seeds 0-19 --jobs 2 \
         [--generators default,chips,spectral] [--kinds none,section_column,...] [--n-permutations 4999] \
-        [--n-boot 200] [--screen-only] [--beyond-size MU] [--out results/diagnosis_rates] [--cache DIR]
+        [--n-boot 200] [--screen-only] [--beyond-size MU] [--out results/diagnosis_rates] [--cache DIR] [--designs N]
 
 Campaigns: tests/diagnosis_rate_campaigns.py (36 sites, 12 sections; the FE replaced by a per-site calibration of
 the exponential-decay law, the texture model by a physics2@dft-like least squares on log MPD and log micro Sq; the
@@ -47,7 +47,13 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from diagnosis_rate_campaigns import KINDS, SECTION_LATENT, generator_of  # noqa: E402 (tests/ on the path first)
+from diagnosis_rate_campaigns import (  # noqa: E402 (tests/ on the path first)
+    KINDS,
+    N_DESIGNS,
+    SECTION_LATENT,
+    design_of,
+    generator_of,
+)
 
 
 def seed_range(text: str) -> list[int]:
@@ -102,12 +108,12 @@ def run_one(args: tuple) -> dict:
     from skidsim import criticism as cr
     from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
 
-    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond = args
+    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs = args
     t0 = time.perf_counter()
-    t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache)
+    t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, n_designs=n_designs)
     if beyond is not None and kind != "none":  # rescale: the part beyond the texture model's terms has sd `beyond`
         size = beyond / truth["effect_sd_beyond_texture_model_mu"]
-        t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, size=size)
+        t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, size=size, n_designs=n_designs)
     inputs = DiagnosisInputs(
         t["sites"],
         t["measured"],
@@ -142,6 +148,7 @@ def run_one(args: tuple) -> dict:
         "generator": source,
         "kind": kind,
         "seed": seed,
+        "design": design_of(seed, n_designs) if generator_of(source) != "default" else seed,
         "hidden": truth["variable"],
         "effect_sd_mu": truth["effect_sd_mu"],
         "effect_rms_mu": truth["effect_rms_mu"],
@@ -168,6 +175,16 @@ def run_one(args: tuple) -> dict:
         "n_permutations": causes[0].n_permutations if causes else 0,
         "wall_s": time.perf_counter() - t0,
     }
+
+
+def texture_of_design(job: tuple) -> None:
+    """Compute (or find) the cached texture table of one (generator, design, cache) job."""
+    import os
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    from diagnosis_rate_campaigns import generator_texture
+
+    generator_texture(*job)
 
 
 def share(x) -> str:
@@ -263,6 +280,13 @@ def main(argv=None):
     ap.add_argument("--out", default=str(ROOT / "results" / "diagnosis_rates"))
     ap.add_argument("--cache", default=str(ROOT / "results" / "diagnosis_rates" / "texture_cache"))
     ap.add_argument(
+        "--designs",
+        type=int,
+        default=N_DESIGNS,
+        help=f"texture designs of the chips and spectral sources, seed s using design s %% N (default {N_DESIGNS}); "
+        "0: a design per seed",
+    )
+    ap.add_argument(
         "--figure-only",
         nargs="+",
         default=None,
@@ -282,15 +306,20 @@ def main(argv=None):
     for k in kinds:
         if k not in KINDS:
             ap.error(f"--kinds: unknown {k!r}; expected some of {','.join(KINDS)}")
-    from diagnosis_rate_campaigns import N_DESIGNS, generator_texture
-
     t0 = time.perf_counter()
-    for g in {generator_of(g) for g in gens}:  # the texture tables first (cached): workers only read them
-        if g != "default":
-            for d in sorted({s % N_DESIGNS for s in seeds}):
-                generator_texture(g, d, a.cache)
+    designs = [  # the texture tables first (cached): the campaigns only read them
+        (g, d, a.cache)
+        for g in sorted({generator_of(g) for g in gens} - {"default"})
+        for d in sorted({design_of(s, a.designs) for s in seeds})
+    ]
+    if a.jobs > 1:
+        with ProcessPoolExecutor(a.jobs) as ex:
+            list(ex.map(texture_of_design, designs))
+    else:
+        for job in designs:
+            texture_of_design(job)
     jobs = [
-        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size)
+        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs)
         for g in gens
         for k in kinds
         for s in seeds

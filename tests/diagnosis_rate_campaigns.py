@@ -26,6 +26,8 @@ Texture sources and friction truths (the friction law of each source is its own,
   ``section (unexplained)``. The texture tables of a few designs per generator
   (:data:`N_DESIGNS`) are computed once and cached (:func:`generator_texture`); campaign seed ``s`` uses design
   ``s % N_DESIGNS`` and draws everything else (friction random factors, decoys, temperatures, DFT noise) afresh.
+  ``n_designs=0`` (:func:`design_of`) gives every seed a texture design of its own, so that a rate counts texture
+  designs as well as friction draws (the default source's stand-in texture is drawn per seed either way).
 
 Effect kinds and sizes (``size`` scales each; 1 = the sizes below, chosen near the default campaign's hidden
 effects: the seasonal temperature step of the workflow test, sd 0.038 mu; the mix offset -0.05 on 3 of 12
@@ -117,6 +119,14 @@ CONTACT_DEPTH_MM = 0.5
 def generator_of(source: str) -> str:
     """The texture generator of a source (``default``, ``chips``, ``spectral``)."""
     return source.removesuffix(SECTION_LATENT)
+
+
+def design_of(seed: int, n_designs: int = N_DESIGNS) -> int:
+    """The texture design of campaign ``seed``: ``seed % n_designs``; ``n_designs`` 0: the seed itself (a design
+    per campaign)."""
+    if n_designs < 0:
+        raise ValueError(f"n_designs: expected 0 (a design per seed) or a positive count, got {n_designs}")
+    return int(seed) if n_designs == 0 else int(seed) % int(n_designs)
 
 
 def _rng(seed: int, *keys) -> np.random.Generator:
@@ -386,6 +396,7 @@ def generate(
     noise_mu: float | None = None,
     trace_step_kmh: float = 4.0,
     texture: pd.DataFrame | None = None,
+    n_designs: int = N_DESIGNS,
 ):
     """Return (sites, measured, texture, truth) of one campaign: sites.csv columns, DFT points (site, speed_kmh,
     mu, kind), the texture table (site + numeric columns; the hidden measures are not in it) and the truth dict
@@ -393,14 +404,16 @@ def generate(
     effect_sd_beyond_texture_model_mu: the same of the part the prediction model's texture terms cannot carry
     (:func:`beyond_texture_model`), effect_rms_mu: RMS of the
     effect over sites and 20-70 km/h about its campaign mean per speed). ``texture``: a precomputed
-    :func:`generator_texture` table (else it is computed or read from ``cache_dir``)."""
+    :func:`generator_texture` table (else design :func:`design_of` (``seed``, ``n_designs``) is computed or read
+    from ``cache_dir``)."""
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
     if source not in SOURCES:
         raise ValueError(f"source: expected one of {SOURCES}, got {source!r}")
     if texture is None:
         gen = generator_of(source)
-        texture = default_texture(seed) if gen == "default" else generator_texture(gen, seed % N_DESIGNS, cache_dir)
+        design = design_of(seed, n_designs)
+        texture = default_texture(seed) if gen == "default" else generator_texture(gen, design, cache_dir)
     tex = texture.reset_index(drop=True)
     n = len(tex)
     sites = site_design(seed, tex["site"], tex["section"])

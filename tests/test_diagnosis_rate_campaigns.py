@@ -217,3 +217,23 @@ def test_hide_column_effect_changes_a_written_campaign_as_the_rate_campaigns(tmp
             assert all(moved)
     with pytest.raises(ValueError, match="kind"):
         rc.column_effect("texture_speed", {}, [20.0], lambda u: u)
+
+
+def test_a_design_per_seed_gives_every_campaign_its_own_texture(monkeypatch, chips_texture):
+    """``n_designs`` 0 (``benchmarks/diagnosis_rates.py --designs 0``): campaign seed s reads texture design s;
+    by default seeds 4 apart share a design (the documented table's 4 designs)."""
+    assert [rc.design_of(s) for s in (0, 1, 4, 7, 9)] == [0, 1, 0, 3, 1]
+    assert [rc.design_of(s, 0) for s in (0, 1, 4, 7, 9)] == [0, 1, 4, 7, 9]
+    assert rc.design_of(9, 5) == 4
+    with pytest.raises(ValueError, match="n_designs"):
+        rc.design_of(3, -1)
+    asked = []
+
+    def fake_texture(generator, design, cache_dir=None, shape=None):
+        asked.append((generator, design))
+        return chips_texture
+
+    monkeypatch.setattr(rc, "generator_texture", fake_texture)
+    rc.generate("chips", "none", 6, trace_step_kmh=0)
+    rc.generate("spectral+sectionlatent", "none", 6, trace_step_kmh=0, n_designs=0)
+    assert asked == [("chips", 2), ("spectral", 6)]
