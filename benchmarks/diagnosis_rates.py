@@ -187,6 +187,15 @@ def texture_of_design(job: tuple) -> None:
     generator_texture(*job)
 
 
+def mapped(fn, items: list, jobs: int):
+    """``fn`` over ``items`` in order: in ``jobs`` worker processes when ``jobs`` > 1, else in this one."""
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as ex:
+            yield from ex.map(fn, items)
+    else:
+        yield from map(fn, items)
+
+
 def share(x) -> str:
     from skidsim.plotting.diagnosis import scored_bools
 
@@ -306,18 +315,16 @@ def main(argv=None):
     for k in kinds:
         if k not in KINDS:
             ap.error(f"--kinds: unknown {k!r}; expected some of {','.join(KINDS)}")
+    if a.designs < 0:
+        ap.error(f"--designs: expected 0 (a design per seed) or a positive count, got {a.designs}")
     t0 = time.perf_counter()
     designs = [  # the texture tables first (cached): the campaigns only read them
         (g, d, a.cache)
         for g in sorted({generator_of(g) for g in gens} - {"default"})
         for d in sorted({design_of(s, a.designs) for s in seeds})
     ]
-    if a.jobs > 1:
-        with ProcessPoolExecutor(a.jobs) as ex:
-            list(ex.map(texture_of_design, designs))
-    else:
-        for job in designs:
-            texture_of_design(job)
+    for _ in mapped(texture_of_design, designs, a.jobs):
+        pass
     jobs = [
         (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs)
         for g in gens
@@ -337,13 +344,8 @@ def main(argv=None):
         )
 
     rows = []
-    if a.jobs > 1:
-        with ProcessPoolExecutor(a.jobs) as ex:
-            for r in ex.map(run_one, jobs):
-                record(r)
-    else:
-        for j in jobs:
-            record(run_one(j))
+    for r in mapped(run_one, jobs, a.jobs):
+        record(r)
     df = pd.DataFrame(rows)
     md = table(df)
     (out / "table.md").write_text(md + "\n")
