@@ -4,6 +4,7 @@ the MPD amplitude test, texture clusters and families, the ranking by refinement
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -321,3 +322,52 @@ def test_texture_adjusted_permutation_holds_its_level_with_the_leverage_correcti
     corrected = _null_rejection_rate(True)
     assert plain > 0.12
     assert 0.01 <= corrected <= 0.085
+
+
+def test_texture_family_takes_its_share_of_fdr_from_the_secondary():
+    """``texture_share`` > 0 moves every texture cluster (and lone texture column) out of the secondary family into
+    a family ``texture`` of its own: each family's unit p-values are stepped up by BH (statsmodels, an independent
+    implementation) and divided by the family's share, 0.3 for the texture family and 0.5 - 0.3 for the sites.csv
+    columns; the primary family is untouched; shares that leave no secondary family are a ConfigError."""
+    from statsmodels.stats.multitest import multipletests
+
+    from skidsim.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="texture_share"):
+        DiagnosisOptions(primary_share=0.5, texture_share=0.5)
+    tables, _ = make_campaign(seed=0, effect=None)
+    res = cr.build_residuals(tables["sites"], tables["measured"], tables["simulated"], tables["predicted"])
+    cov, info = cr.site_covariates(tables["sites"], tables["texture"])
+    texture_cols = {c for c in cov.columns if info[c][0] == "texture" and info[c][1] == "numeric"}
+
+    def screen(share):
+        opts = DiagnosisOptions(seed=0, n_permutations=999, texture_share=share)
+        with warnings.catch_warnings():  # 999 permutations: too few for a significant cause, enough for the p's
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return cr.screen_candidates(res, tables["sites"], tables["texture"], opts)
+
+    base, split = screen(0.0), screen(0.3)
+    fam = {c.family for c in split if c.variable in texture_cols and c.source == "texture"}
+    assert fam == {"texture", "primary"}  # the MPD column x speed stays a physical (primary) hypothesis
+    assert {c.variable for c in split if c.variable in texture_cols and c.family == "primary"} == {"mpd_mm"}
+    assert {c.family for c in base if c.variable in texture_cols and c.source == "texture"} == {"secondary", "primary"}
+    assert {c.family for c in split if c.source == "sites" and c.variable != "temperature_c"} == {"secondary"}
+    share = {"texture": 0.3, "secondary": 0.2, "primary": 0.5}
+    for family, s in share.items():
+        units = {}
+        for c in split:
+            if c.family == family and c.source != "texture_model":
+                units.setdefault((c.unit, c.level, c.kind), []).append(c)
+        keys = sorted(units)
+        unit_p = np.array([units[k][0].unit_p for k in keys])
+        bh = np.minimum(multipletests(unit_p, method="fdr_bh")[1] / s, 1.0)
+        if family == "primary":  # the texture model's members are one more primary unit
+            tm = [c for c in split if c.source == "texture_model"]
+            unit_p = np.r_[unit_p, tm[0].unit_p]
+            bh = np.minimum(multipletests(unit_p, method="fdr_bh")[1] / s, 1.0)[:-1]
+        for k, expected in zip(keys, bh):
+            got = min(c.p_adjusted for c in units[k])  # the unit's top member carries the unit's adjusted p
+            if family == "secondary" and any(c.section_level for c in units[k]):
+                assert got <= expected + 1e-12  # the gatekeeper may lower a section-level column's
+            else:
+                assert got == pytest.approx(expected, rel=1e-12), k

@@ -39,15 +39,21 @@ def auto_permutations(n_candidates: int, fdr: float) -> int:
     return int(max(999, math.ceil(4 * n_candidates / fdr) - 1))
 
 
-def family_shares(primary_share: float) -> dict:
-    """The share of ``fdr`` of each family."""
-    return {"primary": primary_share, "secondary": 1.0 - primary_share}
+def family_shares(primary_share: float, texture_share: float = 0.0) -> dict:
+    """The share of ``fdr`` of each family: ``primary``, ``secondary`` and, when ``texture_share`` > 0, ``texture``
+    (the texture clusters and lone texture columns, taken out of the secondary family). The shares sum to 1."""
+    share = {"primary": primary_share, "secondary": 1.0 - primary_share - texture_share}
+    if texture_share > 0:
+        share["texture"] = texture_share
+    return share
 
 
-def family_sizes(levels, candidates) -> dict:
+def family_sizes(levels, candidates, texture_family: bool = False) -> dict:
     """Number of testing units per family over the screened ``levels`` (within-site: x_speed only; between-site:
-    main and x_speed) of a :class:`~skidsim.criticism.covariates.CandidateSet`."""
-    m_fam = {"primary": 0, "secondary": 0}
+    main and x_speed) of a :class:`~skidsim.criticism.covariates.CandidateSet`; with ``texture_family`` the texture
+    clusters count in a family ``texture`` of their own."""
+    m_fam = {"primary": 0, "secondary": 0, "texture": 0}
+    clusters = "texture" if texture_family else "secondary"
     meta = [c for c in candidates.covariates.columns if candidates.info[c][0] != "texture"]
     has_texture = len(meta) < len(candidates.covariates.columns)
     for lv in levels:
@@ -57,14 +63,15 @@ def family_sizes(levels, candidates) -> dict:
             m_fam["primary"] += n_temp + (1 if (candidates.mpd is not None and kind == "x_speed") else 0)
             if lv == "between-site" and kind == "main" and has_texture:
                 m_fam["primary"] += 1  # the texture model (skidsim.criticism.texture_candidate)
-            m_fam["secondary"] += len(meta) - n_temp + len(candidates.clusters)
+            m_fam["secondary"] += len(meta) - n_temp
+            m_fam[clusters] += len(candidates.clusters)
     return m_fam
 
 
 def permutation_count(m_fam: dict, options) -> int:
     """Permutations per test: ``options.n_permutations`` or :func:`auto_permutations` for the larger family size
     divided by its share of ``fdr``; warns when no single cause could ever be significant."""
-    share = family_shares(options.primary_share)
+    share = family_shares(options.primary_share, options.texture_share)
     n_tests = int(math.ceil(max(m_fam[f] / share[f] for f in m_fam if m_fam[f] > 0)))
     P = auto_permutations(n_tests, options.fdr) if options.n_permutations is None else int(options.n_permutations)
     if P < 1:
@@ -91,9 +98,12 @@ class Unit:
     members: list = field(default_factory=list)
 
 
-def testing_units(tests, candidates) -> dict:
+def testing_units(tests, candidates, texture_family: bool = False) -> dict:
     """{key: Unit} over the tests: primary singles, the texture-model members (one primary unit per level and
-    kind, tested by their max-statistic), texture clusters (per level and kind), secondary singles."""
+    kind, tested by their max-statistic), texture clusters (per level and kind), secondary singles. The texture
+    clusters and lone texture columns are secondary units, or with ``texture_family`` units of the family
+    ``texture``."""
+    tex_fam = "texture" if texture_family else "secondary"
     cluster_of = {c: k for k, members in enumerate(candidates.clusters) for c in members}
     units = {}
     for j, t in enumerate(tests):
@@ -107,9 +117,10 @@ def testing_units(tests, candidates) -> dict:
         ):
             key, fam, name = ("single", j), "primary", v
         elif v in cluster_of and len(candidates.clusters[cluster_of[v]]) > 1:
-            key, fam, name = ("cluster", t.level, t.kind, cluster_of[v]), "secondary", None
+            key, fam, name = ("cluster", t.level, t.kind, cluster_of[v]), tex_fam, None
         else:
-            key, fam, name = ("single", j), "secondary", v
+            fam = tex_fam if v in cluster_of else "secondary"
+            key, name = ("single", j), v
         units.setdefault(key, Unit(fam, name))
         units[key].members.append(j)
     return units
@@ -173,11 +184,11 @@ def adjust(tests, candidates, options) -> Adjustment:
     """Permutation p-values, testing units, per-family step-up adjustment (p_adjusted on the fdr scale: the
     family-adjusted unit p / share; for a cluster member at least its within-cluster maxT p), gatekeeper."""
     pvals = np.array([permutation_p(t.T, t.Tp) for t in tests])
-    units = testing_units(tests, candidates)
+    units = testing_units(tests, candidates, options.texture_share > 0)
     unit_p, wy_p = _unit_pvalues(tests, units, pvals)
-    share = family_shares(options.primary_share)
+    share = family_shares(options.primary_share, options.texture_share)
     unit_adj = {}
-    for fam in ("primary", "secondary"):
+    for fam in share:
         keys = [k for k, u in units.items() if u.family == fam]
         if keys:
             a = adjust_pvalues(np.array([unit_p[k] for k in keys]), options.fdr_method) / share[fam]

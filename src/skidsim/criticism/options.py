@@ -29,6 +29,8 @@ class DiagnosisOptions:
     interval level; ``corr_group``: |Pearson r| above which numeric candidates are reported as one group;
     ``speed_bin_kmh``: speed bin (km/h) of the residual matrices; ``cluster_rho``: |Spearman rho| of every pair of
     a texture cluster (one testing unit); ``primary_share``: share of ``fdr`` for the primary family;
+    ``texture_share``: share of ``fdr`` for a family of the texture clusters and lone texture columns of their own,
+    taken from the secondary family's (0: they stay secondary units, the default);
     ``adjust_texture``: between-site tests of sites.csv covariates conditioned on the texture; ``fe_extension``:
     "auto" | "always" | "never"; ``viscoelastic``: the Prony series of the FE extension, ``prony_g`` (relative to
     the long-term shear modulus) and ``prony_tau_s`` (relaxation times, s).
@@ -44,6 +46,7 @@ class DiagnosisOptions:
     speed_bin_kmh: float = 10.0
     cluster_rho: float = 0.8
     primary_share: float = 0.5
+    texture_share: float = 0.0
     adjust_texture: bool = True
     fe_extension: str = "auto"
     viscoelastic: dict = field(default_factory=_default_prony)
@@ -53,6 +56,11 @@ class DiagnosisOptions:
             (0 < self.fdr < 1, "fdr", "a number in (0, 1)"),
             (self.fdr_method in FDR_METHODS, "fdr_method", f"one of {FDR_METHODS}"),
             (0 < self.primary_share < 1, "primary_share", "a number in (0, 1)"),
+            (
+                0 <= self.texture_share < 1 - self.primary_share,
+                "texture_share",
+                f"a number in [0, 1 - primary_share) = [0, {1 - self.primary_share:g})",
+            ),
             (0 < self.ci < 1, "ci", "a number in (0, 1)"),
             (int(self.n_boot) >= 1, "n_boot", "an integer >= 1"),
             (self.speed_bin_kmh > 0, "speed_bin_kmh", "a positive speed bin (km/h)"),

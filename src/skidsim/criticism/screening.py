@@ -701,7 +701,7 @@ def screen_candidates(
     cands = candidate_set(sites, texture_wide, roles, options.cluster_rho)
     data = level_data(residuals, options)
     ff_delta = _between_shape(residuals, data, options.speed_bin_kmh)
-    P = permutation_count(family_sizes(data, cands), options)
+    P = permutation_count(family_sizes(data, cands, options.texture_share > 0), options)
     rng = np.random.default_rng(options.seed)
     tests, between = [], None
     for d in data.values():
