@@ -48,6 +48,12 @@ def family_shares(primary_share: float, texture_share: float = 0.0) -> dict:
     return share
 
 
+def has_texture_family(options) -> bool:
+    """Whether the texture clusters form a family of their own under ``options`` (a share of ``fdr`` in
+    :func:`family_shares`)."""
+    return "texture" in family_shares(options.primary_share, options.texture_share)
+
+
 def family_sizes(levels, candidates, texture_family: bool = False) -> dict:
     """Number of testing units per family over the screened ``levels`` (within-site: x_speed only; between-site:
     main and x_speed) of a :class:`~skidsim.criticism.covariates.CandidateSet`; with ``texture_family`` the texture
@@ -184,7 +190,7 @@ def adjust(tests, candidates, options) -> Adjustment:
     """Permutation p-values, testing units, per-family step-up adjustment (p_adjusted on the fdr scale: the
     family-adjusted unit p / share; for a cluster member at least its within-cluster maxT p), gatekeeper."""
     pvals = np.array([permutation_p(t.T, t.Tp) for t in tests])
-    units = testing_units(tests, candidates, options.texture_share > 0)
+    units = testing_units(tests, candidates, has_texture_family(options))
     unit_p, wy_p = _unit_pvalues(tests, units, pvals)
     share = family_shares(options.primary_share, options.texture_share)
     unit_adj = {}

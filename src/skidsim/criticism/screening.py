@@ -31,7 +31,7 @@ from .causes import Cause, make_causes, rank_causes
 from .covariates import CandidateRoles, CandidateSet, candidate_set, scores_for
 from .crossval import cv_sse, cv_sse_design, folds, is_section_nested
 from .extensions import ifi_speed_constant_kmh
-from .fdr import adjust, family_sizes, permutation_count
+from .fdr import adjust, family_sizes, has_texture_family, permutation_count
 from .options import DiagnosisOptions
 from .permutations import nested_permutations, perm_stats, permutation_p, site_permutations
 from .residuals import LEVELS, level_matrix, require_columns, texture_model_shape
@@ -701,7 +701,7 @@ def screen_candidates(
     cands = candidate_set(sites, texture_wide, roles, options.cluster_rho)
     data = level_data(residuals, options)
     ff_delta = _between_shape(residuals, data, options.speed_bin_kmh)
-    P = permutation_count(family_sizes(data, cands, options.texture_share > 0), options)
+    P = permutation_count(family_sizes(data, cands, has_texture_family(options)), options)
     rng = np.random.default_rng(options.seed)
     tests, between = [], None
     for d in data.values():
