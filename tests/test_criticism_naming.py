@@ -256,6 +256,30 @@ def test_an_unexplained_section_effect_ranks_below_a_texture_explanation_of_its_
     assert out[0].variable == "section" and out[0].label == SECTION_UNEXPLAINED
 
 
+def test_a_significant_texture_speed_cause_ranks_above_an_unexplained_section_mean_effect():
+    """Between sites the section means' effect is significant and nothing explains it; the section x speed effect
+    is not significant, but a significant texture x speed cause explains 67 % of it (7 % of the section means'):
+    the texture cause is named first and the section means' effect stays listed, labelled unexplained, right below
+    it (the chips texture-measure campaign of seed 0 of the rates). It does not move when it explains less than
+    half of its own section effect, when it is not significant, when it is a sites.csv column, or when it is of
+    the other level."""
+    sec_main = _cause("section", 1.0, section_id=True, cv=0.9)
+    sec_speed = replace(_cause("section", 1.0, section_id=True, kind="x_speed", cv=0.1), significant=False)
+    sdq = _cause("raw_Sdq", 0.67, kind="x_speed", section_level=False, source="texture", cv=0.5)
+    sdq = replace(sdq, section_share_main=0.07)
+    out = section_rule([sec_main, sec_speed, sdq])
+    assert [(c.variable, c.kind) for c in out][:2] == [("raw_Sdq", "x_speed"), ("section", "main")]
+    assert out[1].label == SECTION_UNEXPLAINED and out[1].significant
+    for other in (
+        replace(sdq, section_share=0.3),
+        replace(sdq, significant=False),
+        replace(sdq, source="sites", variable="aadt"),
+        replace(sdq, level="within-site"),
+    ):
+        out = section_rule([sec_main, sec_speed, other])
+        assert out[0].variable == "section" and out[0].label == SECTION_UNEXPLAINED, other.variable
+
+
 def test_a_site_level_column_that_carries_the_section_effect_is_named_above_section():
     """A significant column that varies within sections (a test temperature drawn per section and per site) and
     explains 70 % of the section effect goes above section identity, which is then not unexplained; one that

@@ -468,16 +468,40 @@ def _move(causes: list[Cause], c: Cause, to: int) -> None:
     causes.insert(to, c)
 
 
-def _texture_above_unexplained(causes: list[Cause], used: set) -> None:
+def _explains_its_own(c: Cause, S: Cause, share_min: float) -> bool:
+    """Whether ``c`` is a significant texture cause of S's level and another kind that explains at least
+    ``share_min`` of the section effect of its own kind, whether or not that section effect is significant (a
+    texture x speed cause that carries most of the section means' speed shapes, beside a section effect on the
+    site means that it does not carry)."""
+    return (
+        c.significant
+        and c.level == S.level
+        and c.kind != S.kind
+        and c.source in TEXTURE_SOURCES
+        and _explains(c, c.kind, share_min)
+    )
+
+
+def _texture_above_unexplained(causes: list[Cause], used: set, share_min: float = SECTION_SHARE_MIN) -> None:
     """An unexplained section effect ranks below a texture cause that explains another section effect of its level
-    (``used``: the ids of the texture explanations rule 2 moved or found): the texture model, or the texture
-    measure, is then established as a misfit that clusters by section (e.g. the texture model explains the
-    section x speed effect), and the section effect it does not explain (the section means) stays listed, labelled
-    unexplained, right below it. The largest share of its own section effect first. In place."""
+    (``used``: the ids of the texture explanations rule 2 moved or found; or a significant texture cause of another
+    kind that explains at least ``share_min`` of its own kind's section effect, significant or not,
+    :func:`_explains_its_own`): the texture model, or the texture measure, is then established as a misfit that
+    clusters by section (e.g. the texture model explains the section x speed effect), and the section effect it
+    does not explain (the section means) stays listed, labelled unexplained, right below it. The largest share of
+    its own section effect first; the causes moved are added to ``used``. In place."""
     for S in [c for c in causes if c.section_id and c.significant and c.label == SECTION_UNEXPLAINED]:
-        expl = [c for c in causes if id(c) in used and c.level == S.level and _pos(causes, c) > _pos(causes, S)]
+        expl = [
+            c
+            for c in causes
+            if (id(c) in used or _explains_its_own(c, S, share_min))
+            and c.level == S.level
+            and _pos(causes, c) > _pos(causes, S)
+        ]
         if expl:
-            _move(causes, max(expl, key=lambda c: c.section_share), _pos(causes, S))
+            best = max(expl, key=lambda c: c.section_share)
+            used.add(id(best))
+            _move(causes, best, _pos(causes, S))
 
 
 def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr: float | None = None) -> list[Cause]:
@@ -504,7 +528,9 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
       model);
     * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
       ``section (unexplained)``; it then ranks below a texture explanation of another section effect of its level
-      (:func:`_texture_above_unexplained`);
+      (:func:`_texture_above_unexplained`: a texture cause rule 2 moved for another section effect, or a
+      significant texture cause of another kind that explains at least ``share_min`` of its own kind's section
+      effect, significant or not);
     * (rule 6) unless the measured curves show no section effect beyond a quadratic texture model in the
       prediction model's terms (``S.section_rest_p > fdr``, :func:`skidsim.criticism.screening.section_rest_tests`;
       None: the default of :class:`~skidsim.criticism.options.DiagnosisOptions`): S is then the texture model's
@@ -546,7 +572,7 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
     for S in held_out:  # no longer significant: right below every significant cause
         causes.pop(_pos(causes, S))
         causes.insert(max((i for i, c in enumerate(causes) if c.significant), default=-1) + 1, S)
-    _texture_above_unexplained(causes, used)
+    _texture_above_unexplained(causes, used, share_min)
     tm = [c for c in causes if c.significant and c.source == "texture_model" and id(c) not in used]
     others = [c for c in causes if c.significant and c.source != "texture_model"]
     if tm and others:
