@@ -280,6 +280,31 @@ def test_a_significant_texture_speed_cause_ranks_above_an_unexplained_section_me
         assert out[0].variable == "section" and out[0].label == SECTION_UNEXPLAINED, other.variable
 
 
+def test_a_column_established_at_one_kind_explains_the_section_effect_it_carries_beyond_texture_at_the_other():
+    """Between sites both section effects are significant; a section-level column (traffic) explains the section x
+    speed effect (significant there) and carries 90 % of the section means' effect beyond the texture model
+    (exact test p 0.002) but only 32 % of the residual's: it is named above the section means' effect, which is
+    then not unexplained (the spectral section-column campaign of seed 90 of the rates). Not when it carries less
+    than half beyond the texture model, when that test fails, when the column is significant nowhere between
+    sites, or when it explains less than half of the section x speed effect (a chance correlate there)."""
+    sec_main = _cause("section", 1.0, section_id=True, cv=0.9)
+    sec_speed = _cause("section", 1.0, section_id=True, kind="x_speed", cv=0.3)
+    speed = replace(_cause("cum_traffic_msa", 0.6, kind="x_speed", cv=0.06), section_share_main=0.1)
+    main = replace(_cause("cum_traffic_msa", 0.32, sig=False), beyond_texture_share=0.90, beyond_texture_p=0.002)
+    out = section_rule([sec_main, sec_speed, speed, main])
+    assert [(c.variable, c.kind) for c in out][:2] == [("cum_traffic_msa", "x_speed"), ("section", "main")]
+    assert out[1].label == "" and out[1].significant
+    for s, m in (
+        (speed, replace(main, beyond_texture_share=0.3)),
+        (speed, replace(main, beyond_texture_p=0.2)),
+        (replace(speed, significant=False), main),
+        (replace(speed, level="within-site"), main),
+        (replace(speed, section_share=0.3), main),
+    ):
+        out = section_rule([sec_main, sec_speed, s, m])
+        assert out[0].variable == "section" and out[0].label == SECTION_UNEXPLAINED, (s, m)
+
+
 def test_a_site_level_column_that_carries_the_section_effect_is_named_above_section():
     """A significant column that varies within sections (a test temperature drawn per section and per site) and
     explains 70 % of the section effect goes above section identity, which is then not unexplained; one that

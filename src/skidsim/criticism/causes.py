@@ -482,6 +482,38 @@ def _explains_its_own(c: Cause, S: Cause, share_min: float) -> bool:
     )
 
 
+def _column_beyond_texture(S: Cause, causes: list[Cause], share_min: float, fdr: float) -> Cause | None:
+    """A significant section-level sites.csv column (not section identity) of another kind at S's level that
+    explains the section effect of its own kind (at least ``share_min`` of it, or named for it by rule 3d; a
+    column that correlates with it by chance moves below it, :func:`section_rule`) and whose test of S's kind
+    carries at least ``share_min`` of S beyond the texture model
+    (``beyond_texture_share``, with its exact permutation test ``beyond_texture_p <= fdr``,
+    :func:`beyond_texture_explanations`): the column is then the explanation of S too, as a column established at
+    one kind is of the section effect it carries at another (:func:`_column_explains`), although that share is
+    below rule 3d's ``BEYOND_TEXTURE_SHARE_MIN`` for naming a column that is significant nowhere (traffic polishing
+    on a Rado curve: significant on the section x speed effect, 0.90 of the section means' effect beyond the texture
+    model). The significant cause with the largest such share, or None."""
+    carried = {}
+    for x in causes:
+        if x.level == S.level and x.kind == S.kind and x.section_level and not x.section_id and x is not S:
+            b = x.beyond_texture_share
+            if np.isfinite(b) and b >= share_min and x.beyond_texture_p <= fdr:
+                carried[x.variable] = max(b, carried.get(x.variable, 0.0))
+    cols = [
+        c
+        for c in causes
+        if c.significant
+        and c.level == S.level
+        and c.kind != S.kind
+        and c.section_level
+        and not c.section_id
+        and c.source == "sites"
+        and c.variable in carried
+        and (_explains(c, c.kind, share_min) or c.explains == f"section ({c.level}, {c.kind}){BEYOND_TEXTURE}")
+    ]
+    return max(cols, key=lambda c: carried[c.variable]) if cols else None
+
+
 def _texture_above_unexplained(causes: list[Cause], used: set, share_min: float = SECTION_SHARE_MIN) -> None:
     """An unexplained section effect ranks below a texture cause that explains another section effect of its level
     (``used``: the ids of the texture explanations rule 2 moved or found; or a significant texture cause of another
@@ -526,6 +558,9 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
       column that carries S and leaves nothing beyond it is significant by then and counts as such a column;
       rule 3d, :func:`beyond_texture_explanations`: so is a column that carries most of S beyond the texture
       model);
+    * else a significant section-level column of another kind that explains its own kind's section effect and
+      whose test of S's kind carries at least ``share_min`` of S beyond the texture model
+      (:func:`_column_beyond_texture`) moves right above S;
     * if no explanation (such a texture cause, or such a column) ranks above S, S is labelled
       ``section (unexplained)``; it then ranks below a texture explanation of another section effect of its level
       (:func:`_texture_above_unexplained`: a texture cause rule 2 moved for another section effect, or a
@@ -564,7 +599,11 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
             _move(causes, best, _pos(causes, S))
         k = _pos(causes, S)
         if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
-            if np.isfinite(S.section_rest_p) and S.section_rest_p > fdr:
+            col = _column_beyond_texture(S, causes, share_min, fdr)
+            if col is not None:
+                if _pos(causes, col) > k:
+                    _move(causes, col, k)
+            elif np.isfinite(S.section_rest_p) and S.section_rest_p > fdr:
                 causes[k] = replace(S, label=TEXTURE_MISFIT, significant=False)
                 held_out.append(causes[k])
             else:
