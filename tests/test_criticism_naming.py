@@ -294,6 +294,17 @@ def test_a_column_established_at_one_kind_explains_the_section_effect_it_carries
     out = section_rule([sec_main, sec_speed, speed, main])
     assert [(c.variable, c.kind) for c in out][:2] == [("cum_traffic_msa", "x_speed"), ("section", "main")]
     assert out[1].label == "" and out[1].significant
+    from skidsim.criticism.report import report_markdown
+
+    clist = [{**c.as_dict(), "rank": k + 1} for k, c in enumerate(out)]
+    report = report_markdown(clist, {}, None, ".")
+    assert (
+        "`cum_traffic_msa` is also the explanation of the significant `section (between-site, main)` effect" in report
+    )
+    assert (
+        "carries 90% of that effect beyond the texture model (exact permutation test over the sections p = 0.002)"
+        in report
+    )
     for s, m in (
         (speed, replace(main, beyond_texture_share=0.3)),
         (speed, replace(main, beyond_texture_p=0.2)),
@@ -303,6 +314,8 @@ def test_a_column_established_at_one_kind_explains_the_section_effect_it_carries
     ):
         out = section_rule([sec_main, sec_speed, s, m])
         assert out[0].variable == "section" and out[0].label == SECTION_UNEXPLAINED, (s, m)
+        clist = [{**c.as_dict(), "rank": k + 1} for k, c in enumerate(out)]
+        assert "is also the explanation" not in report_markdown(clist, {}, None, ".")
 
 
 def test_a_site_level_column_that_carries_the_section_effect_is_named_above_section():

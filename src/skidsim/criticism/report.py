@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..atomic import write_parquet, write_text
-from .causes import BEYOND_TEXTURE, Cause
+from .causes import BEYOND_TEXTURE, SECTION_SHARE_MIN, Cause
 
 
 def json_safe(o):
@@ -178,6 +178,43 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
     return lines
 
 
+def _share(c: dict, key: str) -> float:
+    v = c.get(key)
+    return float("nan") if v is None else float(v)
+
+
+def _other_kind_lines(top: dict | None, clist: list[dict]) -> list[str]:
+    """Rule 3e of the naming rule (:func:`skidsim.criticism.causes._column_beyond_texture`): the named section-level
+    column is also the explanation of the significant section effect of the other kind at its level, which its test
+    of that kind (not significant on its own, less than half of the residual's section effect) carries beyond the
+    texture model."""
+    if top is None or top.get("source") != "sites" or not top.get("section_level"):
+        return []
+    for S in clist:
+        if not (S.get("section_id") and S["significant"] and S["level"] == top["level"]) or S.get("label"):
+            continue
+        if S["kind"] == top["kind"] or (S["kind"] == "main" and _share(top, "section_share_main") >= SECTION_SHARE_MIN):
+            continue
+        for x in clist:
+            same = x["variable"] == top["variable"] and x["level"] == S["level"] and x["kind"] == S["kind"]
+            b = _share(x, "beyond_texture_share")
+            if (
+                same
+                and not x["significant"]
+                and b >= SECTION_SHARE_MIN
+                and not _share(x, "section_share") >= SECTION_SHARE_MIN
+            ):
+                return [
+                    f"`{top['variable']}` is also the explanation of the significant `section ({S['level']}, "
+                    f"{S['kind']})` effect (rule 3e of the naming rule): its test there carries {b:.0%} of that "
+                    f"effect beyond the texture model (exact permutation test over the sections p = "
+                    f"{_share(x, 'beyond_texture_p'):.2g}) and {_share(x, 'section_share'):.0%} of the residual's "
+                    "section effect, which also holds the texture model's misfit.",
+                    "",
+                ]
+    return []
+
+
 def _gain_lines(gain: dict) -> list[str]:
     """The table of held-out gains per scope and the reference comparisons below it."""
     lines = [
@@ -253,7 +290,8 @@ def report_markdown(
     """The text of report.md: named cause, gains, the top ``top_n`` candidates, the sites.csv columns not tested
     (``untested``: {column: why}), figures (paths relative to ``out``)."""
     top = clist[0] if clist and clist[0]["significant"] else None
-    lines = ["# Model criticism", ""] + _named_lines(top, gain) + _gain_lines(gain) + _texture_model_lines(gain)
+    lines = ["# Model criticism", ""] + _named_lines(top, gain) + _other_kind_lines(top, clist)
+    lines += _gain_lines(gain) + _texture_model_lines(gain)
     lines += _candidate_lines(clist, top_n) + _untested_lines(untested)
     return "\n".join(lines + _figure_lines(figures, out)) + "\n"
 
