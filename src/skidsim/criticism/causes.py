@@ -509,7 +509,7 @@ def _column_beyond_texture(S: Cause, causes: list[Cause], share_min: float, fdr:
         and not c.section_id
         and c.source == "sites"
         and c.variable in carried
-        and (_explains(c, c.kind, share_min) or c.explains == f"section ({c.level}, {c.kind}){BEYOND_TEXTURE}")
+        and (_explains(c, c.kind, share_min) or _names(c, c))  # c's own level and kind: named there by 3d
     ]
     return max(cols, key=lambda c: carried[c.variable]) if cols else None
 
