@@ -81,7 +81,12 @@ class Cause:
     p_adjusted is above fdr (empty otherwise); ``beyond_texture_share``, ``beyond_texture_p``: for a section-level
     sites.csv column between sites, its share of the section effect in the measured curves beyond the quadratic
     texture model of rule 6 and its exact permutation p there
-    (:func:`skidsim.criticism.screening.beyond_texture_tests`; NaN elsewhere).
+    (:func:`skidsim.criticism.screening.beyond_texture_tests`; NaN elsewhere); ``explanation_rule``,
+    ``explained_by``: for a significant section identity, the rule of :func:`section_rule` that explains it and
+    the test that does (``<variable> (<level>, <kind>)``): "2" a texture cause, "3" a sites.csv column (also
+    when rule 3b or 3d made it significant), "3e" a column of the other kind that carries it beyond the texture
+    model; "6" with an empty ``explained_by`` for the texture model's misfit (``TEXTURE_MISFIT``); both empty
+    for ``section (unexplained)`` and for every other cause.
     """
 
     variable: str
@@ -115,6 +120,8 @@ class Cause:
     explains: str = ""
     beyond_texture_share: float = float("nan")
     beyond_texture_p: float = float("nan")
+    explanation_rule: str = ""
+    explained_by: str = ""
 
     @property
     def category(self) -> str:
@@ -598,13 +605,17 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
         if best is not None and _pos(causes, best) > _pos(causes, S):
             _move(causes, best, _pos(causes, S))
         k = _pos(causes, S)
+        if best is not None:
+            S = causes[k] = replace(S, explanation_rule="3" if id(best) in cols else "2", explained_by=_test_name(best))
         if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
             col = _column_beyond_texture(S, causes, share_min, fdr)
             if col is not None:
                 if _pos(causes, col) > k:
                     _move(causes, col, k)
+                k = _pos(causes, S)
+                S = causes[k] = replace(S, explanation_rule="3e", explained_by=_test_name(col))
             elif np.isfinite(S.section_rest_p) and S.section_rest_p > fdr:
-                causes[k] = replace(S, label=TEXTURE_MISFIT, significant=False)
+                causes[k] = replace(S, label=TEXTURE_MISFIT, significant=False, explanation_rule="6")
                 held_out.append(causes[k])
             else:
                 causes[k] = replace(S, label=SECTION_UNEXPLAINED)

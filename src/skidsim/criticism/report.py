@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..atomic import write_parquet, write_text
-from .causes import BEYOND_TEXTURE, SECTION_SHARE_MIN, Cause
+from .causes import BEYOND_TEXTURE, Cause
 
 
 def json_safe(o):
@@ -184,34 +184,32 @@ def _share(c: dict, key: str) -> float:
 
 
 def _other_kind_lines(top: dict | None, clist: list[dict]) -> list[str]:
-    """Rule 3e of the naming rule (:func:`skidsim.criticism.causes._column_beyond_texture`): the named section-level
-    column is also the explanation of the significant section effect of the other kind at its level, which its test
-    of that kind (not significant on its own, less than half of the residual's section effect) carries beyond the
-    texture model."""
-    if top is None or top.get("source") != "sites" or not top.get("section_level"):
+    """Rule 3e of the naming rule (:func:`skidsim.criticism.causes._column_beyond_texture`; a section effect whose
+    ``explanation_rule`` is "3e" and ``explained_by`` the named cause's test): the named section-level column is
+    also the explanation of the significant section effect of the other kind at its level, which its test of that
+    kind (not significant on its own, less than half of the residual's section effect) carries beyond the texture
+    model."""
+    if top is None:
         return []
+    name = f"{top['variable']} ({top['level']}, {top['kind']})"
     for S in clist:
-        if not (S.get("section_id") and S["significant"] and S["level"] == top["level"]) or S.get("label"):
+        if not (S.get("section_id") and S.get("explanation_rule") == "3e" and S.get("explained_by") == name):
             continue
-        if S["kind"] == top["kind"] or (S["kind"] == "main" and _share(top, "section_share_main") >= SECTION_SHARE_MIN):
+        tests = [
+            x for x in clist if x["variable"] == top["variable"] and x["level"] == S["level"] and x["kind"] == S["kind"]
+        ]
+        tests = [t for t in tests if np.isfinite(_share(t, "beyond_texture_share"))]
+        if not tests:
             continue
-        for x in clist:
-            same = x["variable"] == top["variable"] and x["level"] == S["level"] and x["kind"] == S["kind"]
-            b = _share(x, "beyond_texture_share")
-            if (
-                same
-                and not x["significant"]
-                and b >= SECTION_SHARE_MIN
-                and not _share(x, "section_share") >= SECTION_SHARE_MIN
-            ):
-                return [
-                    f"`{top['variable']}` is also the explanation of the significant `section ({S['level']}, "
-                    f"{S['kind']})` effect (rule 3e of the naming rule): its test there carries {b:.0%} of that "
-                    f"effect beyond the texture model (exact permutation test over the sections p = "
-                    f"{_share(x, 'beyond_texture_p'):.2g}) and {_share(x, 'section_share'):.0%} of the residual's "
-                    "section effect, which also holds the texture model's misfit.",
-                    "",
-                ]
+        x = max(tests, key=lambda t: _share(t, "beyond_texture_share"))
+        return [
+            f"`{top['variable']}` is also the explanation of the significant `section ({S['level']}, "
+            f"{S['kind']})` effect (rule 3e of the naming rule): its test there carries "
+            f"{_share(x, 'beyond_texture_share'):.0%} of that effect beyond the texture model (exact permutation "
+            f"test over the sections p = {_share(x, 'beyond_texture_p'):.2g}) and {_share(x, 'section_share'):.0%} "
+            "of the residual's section effect, which also holds the texture model's misfit.",
+            "",
+        ]
     return []
 
 
