@@ -351,9 +351,15 @@ def refinement_descriptions(
     return out
 
 
+def name_of_test(variable: str, level: str, kind: str) -> str:
+    """``<variable> (<level>, <kind>)``: how ``explains`` and ``explained_by`` name a test (one spelling for
+    causes.json and report.md)."""
+    return f"{variable} ({level}, {kind})"
+
+
 def _test_name(c: Cause) -> str:
-    """``<variable> (<level>, <kind>)``: how ``explains`` names the test a cause is named for (rule 3c)."""
-    return f"{c.variable} ({c.level}, {c.kind})"
+    """:func:`name_of_test` of a cause (rule 3c)."""
+    return name_of_test(c.variable, c.level, c.kind)
 
 
 def _descriptions_at_their_groupings(causes: list[Cause]) -> None:

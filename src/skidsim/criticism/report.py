@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..atomic import write_parquet, write_text
-from .causes import BEYOND_TEXTURE, Cause
+from .causes import BEYOND_TEXTURE, Cause, name_of_test
 
 
 def json_safe(o):
@@ -191,7 +191,7 @@ def _other_kind_lines(top: dict | None, clist: list[dict]) -> list[str]:
     model."""
     if top is None:
         return []
-    name = f"{top['variable']} ({top['level']}, {top['kind']})"
+    name = name_of_test(top["variable"], top["level"], top["kind"])
     for S in clist:
         if not (S.get("section_id") and S.get("explanation_rule") == "3e" and S.get("explained_by") == name):
             continue
