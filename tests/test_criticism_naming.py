@@ -715,6 +715,7 @@ def test_rule_3b_names_the_column_that_carries_a_section_effect_without_its_own_
     out = rank_causes([sec, decoy, agg], cov, None)
     assert [c.variable for c in out][:2] == ["aggregate", "section"], out[:3]
     assert out[0].significant and out[0].explains == "section (between-site, x_speed)" and out[1].label == ""
+    assert (out[1].explanation_rule, out[1].explained_by) == ("3b", "aggregate (between-site, x_speed)")
     assert out[0].p_adjusted == agg.p_adjusted  # its own evidence is reported as it is
     for other in (
         replace(agg, section_rest_p=0.01),
@@ -1084,7 +1085,7 @@ def test_rule_3d_names_a_column_below_its_share_bar_only_when_its_exact_test_sur
     assert named(replace(col("cum_traffic_msa", 0.93, 0.04), dtype="categorical"))
     ranked = section_rule(beyond_texture_explanations([sec, col("cum_traffic_msa", 0.85, 0.001)], 0.05))
     assert ranked[0].variable == "cum_traffic_msa" and ranked[1].label == ""
-    assert (ranked[1].explanation_rule, ranked[1].explained_by) == ("3", "cum_traffic_msa (between-site, main)")
+    assert (ranked[1].explanation_rule, ranked[1].explained_by) == ("3d", "cum_traffic_msa (between-site, main)")
 
 
 @pytest.mark.parametrize("seed", [2, 10])

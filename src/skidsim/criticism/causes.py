@@ -86,10 +86,11 @@ class Cause:
     texture model of rule 6 and its exact permutation p there
     (:func:`skidsim.criticism.screening.beyond_texture_tests`; NaN elsewhere); ``explanation_rule``,
     ``explained_by``: for a significant section identity, the rule of :func:`section_rule` that explains it and
-    the test that does (``<variable> (<level>, <kind>)``): "2" a texture cause, "3" a sites.csv column (also
-    when rule 3b or 3d made it significant), "3e" a column of the other kind that carries it beyond the texture
-    model; "6" with an empty ``explained_by`` for the texture model's misfit (``TEXTURE_MISFIT``); both empty
-    for ``section (unexplained)`` and for every other cause.
+    the test that does (``<variable> (<level>, <kind>)``): "2" a texture cause, "3" a sites.csv column significant
+    by its own test, "3b", "3c" or "3d" one that rule 3b, 3c or 3d made significant (:func:`_column_rule`), "3e"
+    a column of the other kind that carries it beyond the texture model; "6" with an empty ``explained_by`` for
+    the texture model's misfit (``TEXTURE_MISFIT``); both empty for ``section (unexplained)`` and for every other
+    cause.
     """
 
     variable: str
@@ -615,7 +616,8 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
             _move(causes, best, _pos(causes, S))
         k = _pos(causes, S)
         if best is not None:
-            S = causes[k] = replace(S, explanation_rule="3" if id(best) in cols else "2", explained_by=_test_name(best))
+            rule = _column_rule(best) if id(best) in cols else "2"
+            S = causes[k] = replace(S, explanation_rule=rule, explained_by=_test_name(best))
         if not any(_explanation(c, S, True, share_min) or id(c) in cols for c in causes[:k]):
             col = _column_beyond_texture(S, causes, share_min, fdr)
             if col is not None:
@@ -641,6 +643,18 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
         pos = max(_pos(rest, c) for c in others) + 1
         causes = rest[:pos] + demote + rest[pos:]
     return causes
+
+
+def _column_rule(c: Cause) -> str:
+    """The rule that made the sites.csv column ``c`` a significant explanation of a section effect (rule 3 of
+    :func:`section_rule`): "3b" (``explains`` a section effect, :func:`section_explanations`), "3d" (``explains``
+    it beyond the texture model, :func:`beyond_texture_explanations`, either tier), "3c" (``explains`` a finer
+    grouping, :func:`refinement_descriptions`), "3" (significant by its own test)."""
+    if c.explains.endswith(BEYOND_TEXTURE):
+        return "3d"
+    if c.explains.startswith("section ("):
+        return "3b"
+    return "3c" if c.explains else "3"
 
 
 def section_explanations(causes: list[Cause], fdr: float, share_min: float = SECTION_SHARE_MIN) -> list[Cause]:
