@@ -100,6 +100,7 @@ def calibrate_fast(
         "alpha_step_factor": opt.alpha_step_factor,
         "alpha_steps_limited": int(sur.limited),
         "correction_relaxation": opt.correction_relaxation,
+        "relaxation_on_reversal": opt.relaxation_on_reversal,
         "fit_gain_tol": opt.fit_gain_tol,
         "prior": None
         if prior is None
@@ -180,6 +181,9 @@ class _Surrogate:
         self.last: list[tuple[float, float] | None] = [None] * spd.size
         self.limited = 0  # refits the alpha trust region moved (alpha_step_factor)
         self.relaxation = float(opt.correction_relaxation)
+        self.on_reversal = bool(opt.relaxation_on_reversal)
+        self.miss = np.zeros(spd.size)  # the latest FE batch's miss of the surrogate (SN), per speed
+        self.reversed = False  # a batch's miss changed sign or did not halve at a speed (relaxation_on_reversal)
         self.n_corrections = 0
         self.whole: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (a, b, d) of the latest whole step
         # (b, d) that reproduce the converged batch: a batch within tol of the surrogate still measures the FE's
@@ -244,16 +248,25 @@ class _Surrogate:
         ``model="slip"``: the offset d_i from inverting the law, ``mu(v_i + d_i) = (SN_i - a_i) / b_i`` (kept within
         0.25..4 times the speed; where not invertible - flat law, value outside [mu_k, mu_s] - the ratio
         ``b_i = SN_i / mu_i``); from the second correction on, b and d move only the share ``correction_relaxation``
-        of the way to those values. ``model="ratio"``: ``b = SN/mu, a = 0`` (fixed point on g) or, once two runs at
+        of the way to those values (with ``relaxation_on_reversal``: only from the first batch on whose miss of the
+        surrogate, ``sn`` minus its prediction, changed sign or did not halve against the previous batch's at any
+        speed; whole steps before it). ``model="ratio"``: ``b = SN/mu, a = 0`` (fixed point on g) or, once two runs at
         that speed differ in mu by >= ``secant_min_dmu``, the secant line through them (slope within 0.2..5).
         """
         self.n_corrections += 1
+        miss = np.asarray(sn, dtype=float) - self.predict(law)[1]
+        if self.n_corrections >= 2:
+            self.reversed = self.reversed or bool(
+                np.any(miss * self.miss < 0) or np.any(np.abs(miss) > 0.5 * np.abs(self.miss))
+            )
+        self.miss = miss
         b_old, d_old = self.b.copy(), self.d.copy()
         self._correct_whole(law, mu_i, sn)
         self.whole = (self.a.copy(), self.b.copy(), self.d.copy())
         if self.model == "slip" and self.n_corrections >= 2 and self.relaxation < 1.0:
-            self.b = b_old + self.relaxation * (self.b - b_old)
-            self.d = d_old + self.relaxation * (self.d - d_old)
+            r = self.relaxation if (self.reversed or not self.on_reversal) else 1.0
+            self.b = b_old + r * (self.b - b_old)
+            self.d = d_old + r * (self.d - d_old)
 
     def corrected(self, law: ExponentialDecay, mu_i: np.ndarray, sn: np.ndarray) -> _Surrogate:
         """A copy of the surrogate after the whole correction of :meth:`correct` from the FE batch ``sn`` of ``law``
