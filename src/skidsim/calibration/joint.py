@@ -254,12 +254,13 @@ class _Surrogate:
         that speed differ in mu by >= ``secant_min_dmu``, the secant line through them (slope within 0.2..5).
         """
         self.n_corrections += 1
-        miss = np.asarray(sn, dtype=float) - self.predict(law)[1]
-        if self.n_corrections >= 2:
-            self.reversed = self.reversed or bool(
-                np.any(miss * self.miss < 0) or np.any(np.abs(miss) > 0.5 * np.abs(self.miss))
-            )
-        self.miss = miss
+        if self.on_reversal:  # the miss is only needed by the option
+            miss = np.asarray(sn, dtype=float) - self.predict(law)[1]
+            if self.n_corrections >= 2:
+                self.reversed = self.reversed or bool(
+                    np.any(miss * self.miss < 0) or np.any(np.abs(miss) > 0.5 * np.abs(self.miss))
+                )
+            self.miss = miss
         b_old, d_old = self.b.copy(), self.d.copy()
         self._correct_whole(law, mu_i, sn)
         self.whole = (self.a.copy(), self.b.copy(), self.d.copy())
