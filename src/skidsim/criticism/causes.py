@@ -27,6 +27,22 @@ SECTION_UNEXPLAINED = "section (unexplained)"
 #: Label of a between-site section effect that the measured curves do not show beyond a quadratic texture model in
 #: the prediction model's terms (rule 6 of :func:`section_rule`).
 TEXTURE_MISFIT = "the texture model's misfit (no section effect in the measured curves beyond its quadratic form)"
+#: How ``Cause.explains`` of a column named for a section effect begins (:func:`section_effect_label`).
+SECTION_EFFECT_PREFIX = "section ("
+
+
+def section_effect_label(level: str, kind: str) -> str:
+    """``Cause.explains`` of a section-level column named for the section effect of ``level`` and ``kind`` (rules
+    3b and 3d of :func:`section_rule`; rule 3d appends :data:`BEYOND_TEXTURE`): ``section (<level>, <kind>)``."""
+    return f"{SECTION_EFFECT_PREFIX}{level}, {kind})"
+
+
+def explains_section_effect(explains: str) -> bool:
+    """Whether ``Cause.explains`` names a section effect (rules 3b, 3d: :func:`section_effect_label`) rather than a
+    finer grouping (rule 3c) or nothing."""
+    return str(explains).startswith(SECTION_EFFECT_PREFIX)
+
+
 #: The kinds of cause :attr:`Cause.category` names.
 CATEGORIES = (
     "texture model",
@@ -367,7 +383,7 @@ def _descriptions_at_their_groupings(causes: list[Cause]) -> None:
     """A coarser description of rule 3c (:func:`refinement_descriptions`) takes the rank of the finer grouping it
     describes: it moves right above it, whatever its own cv_msr (it renames that grouping's evidence, no more). In
     place."""
-    for C in [c for c in causes if c.explains and not c.explains.startswith("section (")]:
+    for C in [c for c in causes if c.explains and not explains_section_effect(c.explains)]:
         F = next((f for f in causes if _test_name(f) == C.explains and f.significant), None)
         if F is not None:
             _move(causes, C, _pos(causes, F) if _pos(causes, C) > _pos(causes, F) else _pos(causes, F) - 1)
@@ -449,7 +465,7 @@ def _explanation(c: Cause, S: Cause, texture: bool, share_min: float) -> bool:
 def _names(c: Cause, S: Cause) -> bool:
     """Whether column ``c`` was named for the section effect ``S`` by rule 3d (:func:`section_explanations`): it
     explains most of S beyond the texture model, whatever its share of the residual's section effect."""
-    return c.explains == f"section ({S.level}, {S.kind}){BEYOND_TEXTURE}" and np.isfinite(c.beyond_texture_share)
+    return c.explains == section_effect_label(S.level, S.kind) + BEYOND_TEXTURE and np.isfinite(c.beyond_texture_share)
 
 
 def _column_explains(c: Cause, S: Cause, causes: list[Cause], share_min: float) -> float:
@@ -652,7 +668,7 @@ def _column_rule(c: Cause) -> str:
     grouping, :func:`refinement_descriptions`), "3" (significant by its own test)."""
     if c.explains.endswith(BEYOND_TEXTURE):
         return "3d"
-    if c.explains.startswith("section ("):
+    if explains_section_effect(c.explains):
         return "3b"
     return "3c" if c.explains else "3"
 
@@ -703,7 +719,7 @@ def section_explanations(causes: list[Cause], fdr: float, share_min: float = SEC
             or not (np.isfinite(best.section_rest_p) and best.section_rest_p > fdr)
         ):
             continue
-        out[_pos(out, best)] = replace(best, significant=True, explains=f"section ({L}, {K})")
+        out[_pos(out, best)] = replace(best, significant=True, explains=section_effect_label(L, K))
     return out
 
 
@@ -747,7 +763,8 @@ def beyond_texture_explanations(causes: list[Cause], fdr: float, share_min: floa
         b, p = best.beyond_texture_share, best.beyond_texture_p
         low = best.dtype == "numeric" and b >= BEYOND_TEXTURE_SHARE_LOW
         if (b >= BEYOND_TEXTURE_SHARE_MIN and p <= fdr) or (low and p <= fdr / len({c.variable for c in cols})):
-            out[_pos(out, best)] = replace(best, significant=True, explains=f"section ({S.level}, {K}){BEYOND_TEXTURE}")
+            label = section_effect_label(S.level, K) + BEYOND_TEXTURE
+            out[_pos(out, best)] = replace(best, significant=True, explains=label)
     return out
 
 

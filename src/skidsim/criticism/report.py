@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..atomic import write_parquet, write_text
-from .causes import BEYOND_TEXTURE, Cause, name_of_test
+from .causes import BEYOND_TEXTURE, Cause, explains_section_effect, name_of_test, section_effect_label
 
 
 def json_safe(o):
@@ -102,7 +102,7 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         + ".",
         "",
     ]
-    if top.get("explains") and not str(top["explains"]).startswith("section ("):
+    if top.get("explains") and not explains_section_effect(top["explains"]):
         lines += [
             f"Named as the coarser description of the significant grouping `{top['explains']}` (rule 3c of the "
             f"naming rule): that grouping splits `{top['variable']}`'s levels further only where the split cannot be "
@@ -203,8 +203,9 @@ def _other_kind_lines(top: dict | None, clist: list[dict]) -> list[str]:
             continue
         x = max(tests, key=lambda t: _share(t, "beyond_texture_share"))
         return [
-            f"`{top['variable']}` is also the explanation of the significant `section ({S['level']}, "
-            f"{S['kind']})` effect (rule 3e of the naming rule): its test there carries "
+            f"`{top['variable']}` is also the explanation of the significant "
+            f"`{section_effect_label(S['level'], S['kind'])}` effect (rule 3e of the naming rule): its test there "
+            "carries "
             f"{_share(x, 'beyond_texture_share'):.0%} of that effect beyond the texture model (exact permutation "
             f"test over the sections p = {_share(x, 'beyond_texture_p'):.2g}) and {_share(x, 'section_share'):.0%} "
             "of the residual's section effect, which also holds the texture model's misfit.",
