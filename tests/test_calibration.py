@@ -608,8 +608,8 @@ def test_relaxation_on_reversal_takes_whole_steps_while_the_miss_keeps_its_sign_
     the FE slowly (misses 0.026, 0.017, 0.013, 0.010, 0.006 at 20 km/h: 18 runs, the pattern of the chips sites
     in docs/calibration.md); whole steps while the miss keeps its sign and halves end in 9 runs, within tol of the
     measured curve. Where the map oscillates (slope below -1), the first reversal makes the corrections half
-    steps, and the calibration converges as with half steps throughout (whole steps do not, in 24 runs). Off
-    (the default) the corrections are those of ``correction_relaxation`` alone."""
+    steps, and the calibration converges as with half steps throughout (whole steps do not, in 24 runs). On
+    by default; off, the corrections are those of ``correction_relaxation`` alone."""
     v = np.arange(5.0, 81.0)
     prior = {"speeds_kmh": [20.0, 40.0, 60.0], "b": [1.0, 1.0, 1.0], "slip_offsets_kmh": [0.0, 0.0, 0.0]}
 
@@ -621,16 +621,16 @@ def test_relaxation_on_reversal_takes_whole_steps_while_the_miss_keeps_its_sign_
 
     truth = ExponentialDecay(mu_s=0.6, mu_k=0.1, alpha=0.04)
     rising = SlipFeedback(truth, g=1.3, kappa=-0.5)
-    half, _ = calibrate(rising, truth)
-    adaptive, err = calibrate(rising, truth, relaxation_on_reversal=True)
+    half, _ = calibrate(rising, truth, relaxation_on_reversal=False)
+    adaptive, err = calibrate(rising, truth)
     assert half.converged and half.n_fe_runs == 18, half.n_fe_runs
     assert adaptive.converged and adaptive.n_fe_runs == 9 and err <= 0.01 + 1e-9, (adaptive.n_fe_runs, err)
     assert adaptive.settings["relaxation_on_reversal"] is True and half.settings["relaxation_on_reversal"] is False
     truth = ExponentialDecay(mu_s=0.8, mu_k=0.2, alpha=0.06)
     falling = SlipFeedback(truth)
-    whole, _ = calibrate(falling, truth, correction_relaxation=1.0)
-    half, _ = calibrate(falling, truth)
-    adaptive, err = calibrate(falling, truth, relaxation_on_reversal=True)
+    whole, _ = calibrate(falling, truth, correction_relaxation=1.0, relaxation_on_reversal=False)
+    half, _ = calibrate(falling, truth, relaxation_on_reversal=False)
+    adaptive, err = calibrate(falling, truth)
     assert not whole.converged and whole.n_fe_runs == 24
     assert adaptive.converged and adaptive.n_fe_runs == half.n_fe_runs < 24 and err <= 0.01 + 1e-9
     with pytest.raises(ConfigError, match="relaxation_on_reversal"):
