@@ -31,10 +31,11 @@ TEXTURE_MISFIT = "the texture model's misfit (no section effect in the measured 
 SECTION_EFFECT_PREFIX = "section ("
 
 
-def section_effect_label(level: str, kind: str) -> str:
-    """``Cause.explains`` of a section-level column named for the section effect of ``level`` and ``kind`` (rules
-    3b and 3d of :func:`section_rule`; rule 3d appends :data:`BEYOND_TEXTURE`): ``section (<level>, <kind>)``."""
-    return f"{SECTION_EFFECT_PREFIX}{level}, {kind})"
+def section_effect_label(level: str, kind: str, beyond_texture: bool = False) -> str:
+    """``Cause.explains`` of a section-level column named for the section effect of ``level`` and ``kind``:
+    ``section (<level>, <kind>)`` by rule 3b of :func:`section_rule`; with ``beyond_texture`` (rule 3d) followed by
+    :data:`BEYOND_TEXTURE`."""
+    return f"{SECTION_EFFECT_PREFIX}{level}, {kind})" + (BEYOND_TEXTURE if beyond_texture else "")
 
 
 def explains_section_effect(explains: str) -> bool:
@@ -465,7 +466,8 @@ def _explanation(c: Cause, S: Cause, texture: bool, share_min: float) -> bool:
 def _names(c: Cause, S: Cause) -> bool:
     """Whether column ``c`` was named for the section effect ``S`` by rule 3d (:func:`section_explanations`): it
     explains most of S beyond the texture model, whatever its share of the residual's section effect."""
-    return c.explains == section_effect_label(S.level, S.kind) + BEYOND_TEXTURE and np.isfinite(c.beyond_texture_share)
+    named = c.explains == section_effect_label(S.level, S.kind, beyond_texture=True)
+    return named and np.isfinite(c.beyond_texture_share)
 
 
 def _column_explains(c: Cause, S: Cause, causes: list[Cause], share_min: float) -> float:
@@ -763,7 +765,7 @@ def beyond_texture_explanations(causes: list[Cause], fdr: float, share_min: floa
         b, p = best.beyond_texture_share, best.beyond_texture_p
         low = best.dtype == "numeric" and b >= BEYOND_TEXTURE_SHARE_LOW
         if (b >= BEYOND_TEXTURE_SHARE_MIN and p <= fdr) or (low and p <= fdr / len({c.variable for c in cols})):
-            label = section_effect_label(S.level, K) + BEYOND_TEXTURE
+            label = section_effect_label(S.level, K, beyond_texture=True)
             out[_pos(out, best)] = replace(best, significant=True, explains=label)
     return out
 
