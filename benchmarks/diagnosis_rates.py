@@ -109,7 +109,7 @@ def run_one(args: tuple) -> dict:
     from skidsim import criticism as cr
     from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
 
-    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, texture_share = args
+    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, texture_share, fdr = args
     t0 = time.perf_counter()
     t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, n_designs=n_designs)
     if beyond is not None and kind != "none":  # rescale: the part beyond the texture model's terms has sd `beyond`
@@ -124,7 +124,8 @@ def run_one(args: tuple) -> dict:
         prediction_model="physics2-like",
         prediction_features=t["prediction_features"],
     )
-    opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot, texture_share=texture_share)
+    level = {} if fdr is None else {"fdr": fdr}
+    opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot, texture_share=texture_share, **level)
     if screen_only:  # the screening of cr.diagnose, without the extension and its gain
         from skidsim.criticism.adjustment import texture_model_scores
 
@@ -305,6 +306,14 @@ def main(argv=None):
         "family's (default 0: they stay secondary units)",
     )
     ap.add_argument(
+        "--fdr",
+        type=float,
+        default=None,
+        metavar="Q",
+        help="DiagnosisOptions.fdr: the false-discovery rate across candidate causes, which is also the false-naming "
+        "rate a null campaign is allowed (default: DiagnosisOptions' 0.05)",
+    )
+    ap.add_argument(
         "--figure-only",
         nargs="+",
         default=None,
@@ -335,7 +344,7 @@ def main(argv=None):
     for _ in mapped(texture_of_design, designs, a.jobs):
         pass
     jobs = [
-        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs, a.texture_share)
+        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs, a.texture_share, a.fdr)
         for g in gens
         for k in kinds
         for s in seeds
