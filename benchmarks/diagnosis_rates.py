@@ -310,8 +310,8 @@ def main(argv=None):
         type=float,
         default=None,
         metavar="Q",
-        help="DiagnosisOptions.fdr: the false-discovery rate across candidate causes, which is also the false-naming "
-        "rate a null campaign is allowed (default: DiagnosisOptions' 0.05)",
+        help="DiagnosisOptions.fdr: the false-discovery rate across candidate causes, which bounds the share of null "
+        "campaigns with a false name (default: DiagnosisOptions' own)",
     )
     ap.add_argument(
         "--figure-only",
