@@ -26,7 +26,7 @@ def test_options_are_the_config_section():
     section = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["diagnosis"]
     assert DiagnosisOptions.from_config(section) == DiagnosisOptions()
     o = DiagnosisOptions()
-    assert (o.seed, o.n_boot, o.fdr, o.fdr_method, o.fe_extension) == (11, 1000, 0.05, "bh", "auto")
+    assert (o.seed, o.n_boot, o.fdr, o.fdr_method, o.fe_extension) == (11, 1000, 0.04, "bh", "auto")
     assert DiagnosisOptions.from_config({"n_boot": 50}).n_boot == 50
 
 

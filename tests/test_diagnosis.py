@@ -107,7 +107,9 @@ def test_texture_adjusted_test_recovers_an_effect_the_texture_model_absorbed():
     assert all(c.texture_pcs == -1 for c in small)
     plain = cr.screen_candidates(r.residuals, sites, wide, DiagnosisOptions(seed=1, adjust_texture=False))
     t_plain = next(c for c in plain if c.variable == "temperature_c" and c.kind == "main")
-    assert t_plain.texture_pcs == -1 and t_plain.p_value > top.p_value
+    # the plain test is the weaker one: a p-value no smaller (both can sit at the permutation floor) and a smaller
+    # cross-validated gain at held-out sections
+    assert t_plain.texture_pcs == -1 and t_plain.p_value >= top.p_value and t_plain.cv_gain < top.cv_gain
 
 
 @pytest.mark.parametrize("effect", ["temperature", "drainage", "squeeze", "wear", "mix"])

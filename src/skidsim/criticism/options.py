@@ -38,7 +38,7 @@ class DiagnosisOptions:
 
     seed: int = 11
     n_permutations: int | None = None
-    fdr: float = 0.05
+    fdr: float = 0.04
     fdr_method: str = "bh"
     n_boot: int = 1000
     ci: float = 0.95
