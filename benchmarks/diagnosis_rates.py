@@ -3,7 +3,7 @@
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/diagnosis_rates.py --seeds 0-19 --jobs 2 \
         [--generators default,chips,spectral] [--kinds none,section_column,...] [--n-permutations 4999] \
         [--n-boot 200] [--screen-only] [--beyond-size MU] [--out results/diagnosis_rates] [--cache DIR] [--designs N] \
-        [--texture-share S]
+        [--texture-share S] [--fdr Q]
 
 Campaigns: tests/diagnosis_rate_campaigns.py (36 sites, 12 sections; the FE replaced by a per-site calibration of
 the exponential-decay law, the texture model by a physics2@dft-like least squares on log MPD and log micro Sq; the
@@ -109,7 +109,7 @@ def run_one(args: tuple) -> dict:
     from skidsim import criticism as cr
     from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
 
-    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, texture_share, fdr = args
+    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, overrides = args
     t0 = time.perf_counter()
     t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, n_designs=n_designs)
     if beyond is not None and kind != "none":  # rescale: the part beyond the texture model's terms has sd `beyond`
@@ -124,8 +124,7 @@ def run_one(args: tuple) -> dict:
         prediction_model="physics2-like",
         prediction_features=t["prediction_features"],
     )
-    level = {} if fdr is None else {"fdr": fdr}
-    opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot, texture_share=texture_share, **level)
+    opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot, **overrides)
     if screen_only:  # the screening of cr.diagnose, without the extension and its gain
         from skidsim.criticism.adjustment import texture_model_scores
 
@@ -300,10 +299,10 @@ def main(argv=None):
     ap.add_argument(
         "--texture-share",
         type=float,
-        default=0.0,
+        default=None,
         metavar="S",
         help="DiagnosisOptions.texture_share: the texture clusters' own share of fdr, taken from the secondary "
-        "family's (default 0: they stay secondary units)",
+        "family's (default: DiagnosisOptions' own, under which they stay secondary units)",
     )
     ap.add_argument(
         "--fdr",
@@ -343,8 +342,10 @@ def main(argv=None):
     ]
     for _ in mapped(texture_of_design, designs, a.jobs):
         pass
+    # DiagnosisOptions fields set on the command line; the others keep the dataclass's defaults (their one home)
+    overrides = {f: v for f, v in (("texture_share", a.texture_share), ("fdr", a.fdr)) if v is not None}
     jobs = [
-        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs, a.texture_share, a.fdr)
+        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs, overrides)
         for g in gens
         for k in kinds
         for s in seeds
