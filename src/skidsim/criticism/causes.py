@@ -27,6 +27,11 @@ SECTION_UNEXPLAINED = "section (unexplained)"
 #: Label of a between-site section effect that the measured curves do not show beyond a quadratic texture model in
 #: the prediction model's terms (rule 6 of :func:`section_rule`).
 TEXTURE_MISFIT = "the texture model's misfit (no section effect in the measured curves beyond its quadratic form)"
+#: Label of a significant section-level column that explains less than half of a section effect labelled
+#: :data:`TEXTURE_MISFIT` (rule 1 of :func:`section_rule` keeps it from the name; rule 6 takes it with that effect).
+MISFIT_CORRELATE = (
+    "a section-level column that explains less than half of a section effect the texture model's misfit carries"
+)
 #: How ``Cause.explains`` of a column named for a section effect begins (:func:`section_effect_label`).
 SECTION_EFFECT_PREFIX = "section ("
 
@@ -617,12 +622,13 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
         S, L, K = S0, S0.level, S0.kind
         weak = [
             c
-            for c in causes[: _pos(causes, S)]
+            for c in causes
             if c.significant and c.level == L and c.kind == K and c.section_level and not c.section_id
             if not _explanation(c, S, False, share_min)
         ]
         for c in weak:
-            _move(causes, c, _pos(causes, S))  # right below S (S moved up by one)
+            if _pos(causes, c) < _pos(causes, S):
+                _move(causes, c, _pos(causes, S))  # right below S (S moved up by one)
         expl = [c for c in causes if _explanation(c, S, True, share_min)]
         cols = {id(c): v for c in causes if np.isfinite(v := _column_explains(c, S, causes, share_min))}
         used.update(id(c) for c in expl)
@@ -646,6 +652,10 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
             elif np.isfinite(S.section_rest_p) and S.section_rest_p > fdr:
                 causes[k] = replace(S, label=TEXTURE_MISFIT, significant=False, explanation_rule="6")
                 held_out.append(causes[k])
+                for c in [c for c in weak if c.significant]:  # rule 1's columns go with the misfit they correlate with
+                    j = _pos(causes, c)
+                    causes[j] = replace(c, significant=False, label=MISFIT_CORRELATE, explanation_rule="6")
+                    held_out.append(causes[j])
             else:
                 causes[k] = replace(S, label=SECTION_UNEXPLAINED)
     for S in held_out:  # no longer significant: right below every significant cause
