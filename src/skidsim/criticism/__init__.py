@@ -30,6 +30,7 @@ import pandas as pd
 from .adjustment import added_variable, texture_model_scores
 from .causes import (
     CATEGORIES,
+    MISFIT_CORRELATE,
     SECTION_SHARE_MIN,
     SECTION_UNEXPLAINED,
     TEXTURE_MISFIT,
@@ -90,6 +91,7 @@ __all__ = [
     "CATEGORIES",
     "SECTION_UNEXPLAINED",
     "TEXTURE_MISFIT",
+    "MISFIT_CORRELATE",
     "LEVELS",
     "DEFAULT_EXCLUDE",
 ]

@@ -93,8 +93,8 @@ class Cause:
     ``1 - SS_sec(residual net of the candidate) / SS_sec(residual)``
     (:func:`skidsim.criticism.texture_candidate.section_share`; NaN where not computed); ``section_share_main``:
     the same for the site means (between sites); ``section_id``: the candidate is section identity; ``label``:
-    what the report names (``section (unexplained)``, ``TEXTURE_MISFIT``, or the texture model in words; empty:
-    the variable);
+    what the report names (``section (unexplained)``, ``TEXTURE_MISFIT``, ``MISFIT_CORRELATE``, or the texture
+    model in words; empty: the variable);
     ``section_rest_p``: for a section-level column, the permutation p of the section effect left beyond it (between
     sites beyond it and the texture model's member of the leading texture PCs); for
     section identity between sites, the p of a section effect in the measured curves beyond a quadratic texture
@@ -611,7 +611,10 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
       None: the default of :class:`~skidsim.criticism.options.DiagnosisOptions`): S is then the texture model's
       misfit (its error on held-out sections, or a curvature of friction in its terms that clusters by section
       through the per-section textures), labelled ``TEXTURE_MISFIT``, not significant, and it goes right below
-      every significant cause.
+      every significant cause; so does every significant section-level column of L and K that the first rule kept
+      from the name (it explains less than ``share_min`` of S), labelled ``MISFIT_CORRELATE``: a column named
+      instead of section must explain most of the section effect, else the cause is section or the texture model
+      (issue 33, item 2).
 
     Then a texture-model candidate that explains no significant section effect goes below every other significant
     cause (it is evidence about the texture model, not the first explanation of a site-level residual)."""
