@@ -470,7 +470,7 @@ def section_rest_tests(
         R = Y - Q @ (Q.T @ Y)
         if is_id:  # beyond the texture model: the F ratio (see the docstring)
             Qg = section_beyond_basis(G, Q)
-            if ctx.n - 1 - Q.shape[1] - Qg.shape[1] <= 0:  # the sections and F span every site: no residual left
+            if ctx.n - np.linalg.matrix_rank(np.c_[np.ones(ctx.n), Q, Qg]) <= 0:  # no residual degree of freedom
                 continue
             stat = section_f_ratio
         else:  # beyond a column: the section sum of squares (see the docstring)
