@@ -655,7 +655,7 @@ def section_rule(causes: list[Cause], share_min: float = SECTION_SHARE_MIN, fdr:
             elif np.isfinite(S.section_rest_p) and S.section_rest_p > fdr:
                 causes[k] = replace(S, label=TEXTURE_MISFIT, significant=False, explanation_rule="6")
                 held_out.append(causes[k])
-                for c in [c for c in weak if c.significant]:  # rule 1's columns go with the misfit they correlate with
+                for c in weak:  # rule 1's columns go with the misfit they correlate with
                     j = _pos(causes, c)
                     causes[j] = replace(c, significant=False, label=MISFIT_CORRELATE, explanation_rule="6")
                     held_out.append(causes[j])

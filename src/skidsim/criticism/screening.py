@@ -488,12 +488,9 @@ def section_rest_tests(
 
 def section_beyond_basis(G: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """Orthonormal basis (n, r) of the section indicators ``G`` (n, n_sections) net of ``[1, Q]`` (``Q``
-    orthonormal, n x q): the directions in which sections differ that the reduced model does not span (SVD, rank
-    to a relative 1e-9)."""
-    B = np.c_[np.full(len(G), 1.0 / np.sqrt(len(G))), Q]
-    Gf = G - B @ np.linalg.lstsq(B, G, rcond=None)[0]
-    U, sv, _ = np.linalg.svd(Gf, full_matrices=False)
-    return U[:, sv > 1e-9 * max(sv.max(initial=0.0), 1e-300)]
+    orthonormal, n x q, centred or holding the constant): the directions in which sections differ that the reduced
+    model does not span (:func:`~skidsim.criticism.texture_candidate.centred_basis` of ``G`` net of ``Q``)."""
+    return centred_basis(G - Q @ (Q.T @ G))
 
 
 def section_sum_of_squares(R: np.ndarray, Gn: np.ndarray) -> np.ndarray:
