@@ -470,7 +470,9 @@ def section_rest_tests(
         R = Y - Q @ (Q.T @ Y)
         if is_id:  # beyond the texture model: the F ratio (see the docstring)
             Qg = section_beyond_basis(G, Q)
-            if ctx.n - np.linalg.matrix_rank(np.c_[np.ones(ctx.n), Q, Qg]) <= 0:  # no residual degree of freedom
+            # Q (= Fq) holds the constant and Qg is orthogonal to it: the reduced model plus the sections span
+            # Q.shape[1] + Qg.shape[1] orthonormal columns
+            if ctx.n - Q.shape[1] - Qg.shape[1] <= 0:  # no residual degree of freedom
                 continue
             stat = section_f_ratio
         else:  # beyond a column: the section sum of squares (see the docstring)
