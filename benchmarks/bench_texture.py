@@ -7,8 +7,8 @@ step (every parameter on raw, macro and micro, one thread; median over --repeats
 Sal Str Sk S10z on each band ours vs surfalize with the ratio (CPU seconds, one thread each). Targets: whole
 stage <= 15 s and <= 2.5 GB on 2 cores; subset >= 15x faster than surfalize (issue 36).
 
-The process first calls ``skidsim.texture.allocator.retain_freed_memory`` as the workflow's texture scripts do;
-``--default-malloc`` leaves glibc's defaults (2-4 s more system time per scan).
+The process first calls ``skidsim.allocator.scan_process_memory`` as the workflow's texture scripts do (glibc's
+heap for every array, NumPy's huge-page advice off); ``--default-malloc`` leaves glibc's and NumPy's defaults.
 
     .venv/bin/python benchmarks/bench_texture.py [--repeats 3] [--no-peer] [--workers 2] [--rows 2048 --cols 2448]
     .venv/bin/python benchmarks/bench_texture.py --despeckle-study docs/figures/texture-despeckle-flat-binder.png
@@ -54,6 +54,7 @@ import time
 import numpy as np
 from scipy import ndimage
 
+from skidsim.allocator import scan_process_memory
 from skidsim.surface import Surface
 from skidsim.texture import (
     TextureOptions,
@@ -65,7 +66,6 @@ from skidsim.texture import (
     remove_form,
     separate_bands,
 )
-from skidsim.texture.allocator import retain_freed_memory
 from skidsim.texture.features import feature_parameters
 from skidsim.texture.height import height_parameters
 from skidsim.texture.hybrid import sdr
@@ -422,7 +422,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-peer", action="store_true")
-    ap.add_argument("--default-malloc", action="store_true", help="leave glibc's malloc settings as they are")
+    ap.add_argument(
+        "--default-malloc", action="store_true", help="leave glibc's malloc and NumPy's huge-page advice as they are"
+    )
     ap.add_argument("--bands", default="raw,macro,micro")
     ap.add_argument("--despeckle-study", metavar="PNG", help="only the flat-binder despeckle study (figure path)")
     ap.add_argument("--despeckle-synthetic", nargs="+", metavar="SITE", help="only the synthetic-site comparison")
@@ -439,8 +441,8 @@ def main() -> None:
     if a.despeckle_study:
         despeckle_study(a.despeckle_study)
         return
-    retained = False if a.default_malloc else retain_freed_memory()
-    print(f"load average before: {os.getloadavg()}; cpus: {os.cpu_count()}; freed memory retained: {retained}")
+    retained = {} if a.default_malloc else scan_process_memory()
+    print(f"load average before: {os.getloadavg()}; cpus: {os.cpu_count()}; memory settings: {retained}")
     if a.old:
         compare_old_new(a.old, pick_scan(a.scan, a.rows, a.cols), max(1, a.compare_repeats))
         print(f"  load average after the comparison: {os.getloadavg()}")

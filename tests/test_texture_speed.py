@@ -7,10 +7,10 @@ import pytest
 from scipy import fft as sfft
 from scipy import ndimage
 
+from skidsim.allocator import retain_freed_memory
 from skidsim.surface import Surface
 from skidsim.texture import TextureOptions, areal_parameters, spatial
 from skidsim.texture import segmentation as seg
-from skidsim.texture.allocator import retain_freed_memory
 from skidsim.texture.hybrid import developed_area, hybrid_parameters, sdq, sdr
 from skidsim.texture.material_ratio import MaterialRatio, material_ratio_parameters
 

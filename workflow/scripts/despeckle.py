@@ -3,13 +3,13 @@ invalid points. The limits come from the config (not the rule's params): changin
 scan_quality rule, which applies the limits again to every site's measures."""
 
 import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
+from skidsim.allocator import scan_process_memory
 from skidsim.runlog import setup_logging, write_json
 from skidsim.scans import read_scan, save_surfaces
 from skidsim.texture import TextureOptions, despeckle_detail, fill_invalid
-from skidsim.texture.allocator import retain_freed_memory
 from skidsim.texture.quality import QualityOptions, check_quality, scan_quality
 
-retain_freed_memory()  # reuse freed scan-sized arrays instead of page-faulting new ones (speed only)
+scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only; skidsim.allocator)
 log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site
 o = TextureOptions(**snakemake.params.cfg)

@@ -1,9 +1,11 @@
 """Snakemake adapter: the study's Figure 7 (a-b) for one site."""
 
+from skidsim.allocator import scan_process_memory
 from skidsim.plotting.texture import plot_figure7
 from skidsim.runlog import setup_logging
 from skidsim.scans import load_surfaces, read_scan
 
+scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only; skidsim.allocator)
 log = setup_logging(snakemake.log[0])
 raw = read_scan(snakemake.input.scan)
 clean = load_surfaces(snakemake.input.surfaces)["clean"]

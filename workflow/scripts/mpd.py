@@ -6,10 +6,12 @@ import dataclasses
 
 import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim import texture
+from skidsim.allocator import scan_process_memory
 from skidsim.runlog import setup_logging, write_json
 from skidsim.scans import load_surfaces
 from skidsim.texture import TextureOptions
 
+scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only; skidsim.allocator)
 log = setup_logging(snakemake.log[0])
 o = TextureOptions(**snakemake.params.cfg)
 clean = load_surfaces(snakemake.input.surfaces)["clean"]

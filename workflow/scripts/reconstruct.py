@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+from skidsim.allocator import scan_process_memory
 from skidsim.config import solver_config
 from skidsim.exports import write_model_bundle
 from skidsim.friction import ExponentialDecay
@@ -11,6 +12,7 @@ from skidsim.runlog import setup_logging
 from skidsim.scans import load_surfaces
 from skidsim.slidermesh import SliderMesh
 
+scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only; skidsim.allocator)
 log = setup_logging(snakemake.log[0])
 m = MeshOptions.from_dict(snakemake.params.mesh)
 clean = load_surfaces(snakemake.input.surfaces)["clean"]

@@ -2,12 +2,12 @@
 
 import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim import texture
+from skidsim.allocator import scan_process_memory
 from skidsim.runlog import setup_logging
 from skidsim.scans import load_surfaces, save_surfaces
 from skidsim.texture import TextureOptions
-from skidsim.texture.allocator import retain_freed_memory
 
-retain_freed_memory()  # reuse freed scan-sized arrays instead of page-faulting new ones (speed only)
+scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only; skidsim.allocator)
 log = setup_logging(snakemake.log[0])
 o = TextureOptions(**snakemake.params.cfg)
 clean = load_surfaces(snakemake.input.surfaces)["clean"]

@@ -6,12 +6,12 @@ import numpy as np
 
 import skidsim._lean  # noqa: F401  (first: SciPy imports without docstring parsing; start-up only)
 from skidsim import texture
+from skidsim.allocator import scan_process_memory
 from skidsim.runlog import setup_logging, write_parquet
 from skidsim.scans import load_surfaces
 from skidsim.texture import MPDResult, TextureOptions
-from skidsim.texture.allocator import retain_freed_memory
 
-retain_freed_memory()  # reuse freed scan-sized arrays instead of page-faulting new ones (speed only)
+scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only; skidsim.allocator)
 log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site
 o = TextureOptions(**snakemake.params.cfg)

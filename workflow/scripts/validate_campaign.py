@@ -4,8 +4,10 @@ and DFT points. Problems: one line each in the log and on stderr, exit status 1,
 import pandas as pd
 
 from skidsim import validate
+from skidsim.allocator import scan_process_memory
 from skidsim.runlog import setup_logging, write_parquet
 
+scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only; skidsim.allocator)
 log = setup_logging(snakemake.log[0])
 level = validate.IngestOptions.from_dict(snakemake.config.get("ingest")).level
 req = validate.Requirements.from_config(snakemake.config)
