@@ -282,6 +282,8 @@ OWN_CHOICES = {
     ("prediction_across_campaigns", "workers"): "worker processes of the benchmark, not scipy.fft threads",
     ("diagnosis_rates", "n_boot"): "fewer bootstrap draws per diagnosis keep campaigns x kinds x seeds affordable",
     ("bench_texture", "workers"): "the threads the benchmark times (the machine's 2 cores), a measured setting",
+    ("bench_allocator", "sections"): "a small campaign (2 sections) keeps the side-by-side workflow runs to minutes",
+    ("bench_allocator", "sites_per_section"): "a small campaign (2 sites per section), as --sections",
 }
 
 
