@@ -63,21 +63,10 @@ def run_mode(workdir: Path, mode: str, sections: list[str], per_section: int, si
     env.pop("SKIDSIM_MALLOC", None)
     if mode == "default":
         env["SKIDSIM_MALLOC"] = "default"
-    cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
-        "-s",
-        str(ROOT / "Snakefile"),
-        "--directory",
-        str(workdir),
-        "--configfile",
-        str(ROOT / "config" / "config.yaml"),
-        str(workdir / "campaign.yaml"),
-        "--cores",
-        str(cores),
-        *targets,
-    ]
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import snakemake_cmd  # the tests' command line of the workflow
+
+    cmd = snakemake_cmd(*targets, workdir=workdir, configfiles=[workdir / "campaign.yaml"], cores=cores)
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=workdir)
     if r.returncode != 0:
         raise SystemExit(f"snakemake failed in {workdir} (exit {r.returncode}):\n{r.stderr[-3000:]}")
@@ -102,6 +91,11 @@ def digest(workdir: Path, sites: list[str]) -> dict[str, str]:
         for s in sites
         for p in COMPARED
     }
+
+
+def _ratio(a: float, b: float) -> str:
+    """``a / b`` as ``1.23x``; ``-`` where ``b`` is 0 (a job too short for Snakemake's CPU sampling)."""
+    return f"{a / b:.2f}x" if b > 0 else "-"
 
 
 def main() -> None:
@@ -138,8 +132,8 @@ def main() -> None:
         n = 1 if rule == "validate_campaign" else len(sites)
         tot_d += md * n
         tot_r += mr * n
-        print(f"| {rule} | {md:.2f} | {mr:.2f} | {md / mr:.2f}x |")
-    print(f"| all jobs of the {len(sites)} sites | {tot_d:.1f} | {tot_r:.1f} | {tot_d / tot_r:.2f}x |")
+        print(f"| {rule} | {md:.2f} | {mr:.2f} | {_ratio(md, mr)} |")
+    print(f"| all jobs of the {len(sites)} sites | {tot_d:.1f} | {tot_r:.1f} | {_ratio(tot_d, tot_r)} |")
     print(f"\noutputs byte-identical across modes and repeats ({len(digests[('default', 0)])} files): {same}")
     if not same:
         raise SystemExit(1)

@@ -21,8 +21,10 @@ Two defaults make each new array cost system time:
   ``NUMPY_MADVISE_HUGEPAGE=0``, which NumPy reads only at import); an explicit ``NUMPY_MADVISE_HUGEPAGE`` in the
   environment is left to decide.
 
-:func:`scan_process_memory` makes both settings; the workflow's scan scripts call it first. Peak RSS stays that of
-the largest working set. The arithmetic is the same (an array's values never depend on where it lives;
+:func:`scan_process_memory` makes both settings; the workflow's scan scripts call it first. In isolation their jobs
+take 1.25-1.37x less CPU with them (three runs); a whole default run did not show it (the scan stages 507 against
+505 CPU s on another day's host), and the texture stage's peak RSS was 974 MB against 923-933 MB
+(docs/performance.md). The arithmetic is the same (an array's values never depend on where it lives;
 tests/test_allocator.py). With the environment variable ``SKIDSIM_MALLOC=default`` (benchmarks/bench_allocator.py's
 side-by-side runs) nothing is set; elsewhere than glibc on Linux only NumPy's advice is.
 """
