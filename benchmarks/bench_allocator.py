@@ -26,6 +26,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tests")]  # the library, and the tests' workflow command line
 RULES = (
     "synth_site",
     "validate_campaign",
@@ -41,7 +42,6 @@ COMPARED = ("campaign/scans/{site}.x3p", "sites/{site}/texture.parquet", "sites/
 
 
 def sites_of(sections: list[str], per_section: int) -> list[str]:
-    sys.path.insert(0, str(ROOT / "src"))
     from skidsim.config import synthetic_config
     from skidsim.generators import default as synthetic
 
@@ -59,13 +59,12 @@ def run_mode(workdir: Path, mode: str, sections: list[str], per_section: int, si
     targets = []
     for s in sites:
         targets += [f"results/sites/{s}/{f}" for f in ("texture.parquet", "mpd.json", "pavement.npz", "figure7.png")]
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
+    from conftest import snakemake_cmd, snakemake_env  # the tests' command line and environment of the workflow
+
+    env = snakemake_env(OMP_NUM_THREADS="1")
     env.pop("SKIDSIM_MALLOC", None)
     if mode == "default":
         env["SKIDSIM_MALLOC"] = "default"
-    sys.path.insert(0, str(ROOT / "tests"))
-    from conftest import snakemake_cmd  # the tests' command line of the workflow
-
     cmd = snakemake_cmd(*targets, workdir=workdir, configfiles=[workdir / "campaign.yaml"], cores=cores)
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=workdir)
     if r.returncode != 0:

@@ -22,7 +22,7 @@ Two defaults make each new array cost system time:
   environment is left to decide.
 
 :func:`scan_process_memory` makes both settings; the workflow's scan scripts call it first. In isolation their jobs
-take 1.25-1.37x less CPU with them (three runs); a whole default run did not show it (the scan stages 507 against
+take 1.23-1.37x less CPU with them (four runs); a whole default run did not show it (the scan stages 507 against
 505 CPU s on another day's host), and the texture stage's peak RSS was 974 MB against 923-933 MB
 (docs/performance.md). The arithmetic is the same (an array's values never depend on where it lives;
 tests/test_allocator.py). With the environment variable ``SKIDSIM_MALLOC=default`` (benchmarks/bench_allocator.py's
