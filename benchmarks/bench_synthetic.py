@@ -3,6 +3,9 @@
     .venv/bin/python benchmarks/bench_synthetic.py                # 5 full-size sites, median wall / CPU time
     .venv/bin/python benchmarks/bench_synthetic.py --sites all    # all 36 sites, plus the campaign's ranges
     .venv/bin/python benchmarks/bench_synthetic.py --rows 256     # reduced rows (faster look at the ranges)
+    .venv/bin/python benchmarks/bench_synthetic.py --old ../skidsim-OLD [--sites 12 --repeats 2]
+        # an older checkout's generate_site against this one's, in one process, alternating site by site; CPU s
+        # per site of each and of the surface rendering (_render), and whether every array is the same bits
 
 Budget (task): one full-size site (2048 x 2448) in <= 6 s on one core. Prints medians; CPU time (process time)
 is the figure to compare when the machine is shared (wall time then includes waiting for a core).
@@ -11,8 +14,11 @@ is the figure to compare when the machine is shared (wall time then includes wai
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
+import sys
 import time
+from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -21,10 +27,75 @@ import numpy as np
 from skidsim.generators import default as S
 
 
+def _old_module(root: Path):
+    """``skidsim.generators.default`` of another checkout (its ``src``), loaded beside this one's."""
+    name = "skidsim.generators._bench_old_default"
+    spec = importlib.util.spec_from_file_location(name, root / "src" / "skidsim" / "generators" / "default.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod  # dataclasses look their module up
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _timed_render(mod, calls: list):
+    """``mod.generate_site`` with ``mod._render`` timed (CPU s appended to ``calls``)."""
+    inner = mod._render
+
+    def render(*args, **kwargs):
+        c0 = time.process_time()
+        out = inner(*args, **kwargs)
+        calls.append(time.process_time() - c0)
+        return out
+
+    mod._render = render
+    return mod
+
+
+def compare_old(root: Path, cfg: dict, idx: list, repeats: int) -> None:
+    """Old and new generate_site on the same sites, alternating (the first of each pair switches every repeat)."""
+    from skidsim.allocator import scan_process_memory
+
+    scan_process_memory()
+    design = S.design_campaign(cfg)
+    render = {"old": [], "new": []}
+    mods = {"old": _timed_render(_old_module(root), render["old"]), "new": _timed_render(S, render["new"])}
+    total = {"old": [], "new": []}
+    differ = []
+    for rep in range(repeats):
+        for i in idx:
+            row = design.iloc[i].to_dict()
+            out = {}
+            for name in ("old", "new") if (rep + i) % 2 == 0 else ("new", "old"):
+                c0 = time.process_time()
+                out[name] = mods[name].generate_site(row, cfg)
+                total[name].append(time.process_time() - c0)
+            o, n = out["old"], out["new"]
+            same = (
+                np.array_equal(o.surface.heights, n.surface.heights, equal_nan=True)
+                and np.array_equal(o.clean.heights, n.clean.heights, equal_nan=True)
+                and o.dft.equals(n.dft)
+                and o.truth == n.truth
+            )
+            if not same:
+                differ.append(row["site"])
+    for name in ("old", "new"):
+        print(
+            f"{name}: generate_site median CPU {np.median(total[name]):.3f} s, sum {sum(total[name]):.2f} s; "
+            f"_render median {np.median(render[name]):.3f} s, sum {sum(render[name]):.2f} s ({len(total[name])} sites)"
+        )
+    print(
+        f"old / new: generate_site {sum(total['old']) / sum(total['new']):.2f}x, "
+        f"_render {sum(render['old']) / sum(render['new']):.2f}x; "
+        + ("every surface, trace and truth identical" if not differ else f"DIFFERENT at {sorted(set(differ))}")
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sites", default="5", help="number of sites (spread over the design) or 'all'")
     ap.add_argument("--rows", type=int, default=None, help="rows of the scan (default: full 2048)")
+    ap.add_argument("--old", type=Path, help="another checkout: its generate_site against this one's")
+    ap.add_argument("--repeats", type=int, default=2, help="with --old: passes over the sites")
     args = ap.parse_args()
     cfg = S.default_config()
     if args.rows:
@@ -36,6 +107,9 @@ def main() -> None:
         idx = list(range(len(design)))
     else:
         idx = list(np.linspace(0, len(design) - 1, int(args.sites)).round().astype(int))
+    if args.old:
+        compare_old(args.old, cfg, idx, args.repeats)
+        return
     wall, cpu, rows = [], [], []
     for i in idx:
         row = design.iloc[i].to_dict()

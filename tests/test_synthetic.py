@@ -140,6 +140,38 @@ def test_reduced_surfaces_are_pavement_like():
         assert np.isfinite(h).all()
 
 
+def test_stone_cap_equals_the_whole_patch_formula():
+    """The stone outline and cap with the powers taken only in the box |u/a| < 1, |v/b| < 1 are those of the
+    superellipse evaluated on every point of the patch, bit for bit (the formula before the box), for rotated
+    stones of every shape the default gradations draw, points exactly on the box edge included."""
+    rng = np.random.default_rng(5)
+    n_inside = 0
+    for k in range(300):
+        a = rng.uniform(0.5, 10.0)
+        b = a * rng.uniform(0.4, 1.0)
+        n_pl, m_v = rng.uniform(1.5, 6.0), rng.uniform(1.2, 4.0)
+        theta = np.pi * rng.random()
+        ct, st = np.cos(theta), np.sin(theta)
+        if k % 3 == 0:  # axis-aligned on a grid through the box edges: |u / a| == 1 exactly at some points
+            ct, st = 1.0, 0.0
+            X = np.linspace(-1.2 * a, 1.2 * a, 49)
+            Y = np.linspace(-1.2 * b, 1.2 * b, 37)[:, None]
+        else:
+            X = np.arange(-30, 31) * 0.05 * a / 1.2
+            Y = (np.arange(-30, 31) * 0.05 * a / 1.2)[:, None]
+        u, v = X * ct + Y * st, Y * ct - X * st
+        base, thick, t0, t1 = -rng.uniform(0.5, 3.0), rng.uniform(0.2, 4.0), rng.normal(0, 0.06), rng.normal(0, 0.06)
+        inside, z = S._stone_cap(u, v, a, b, n_pl, m_v, base, thick, t0, t1)
+        rho_n = np.abs(u * (1.0 / a)) ** n_pl + np.abs(v * (1.0 / b)) ** n_pl
+        ref_inside = rho_n < 1.0
+        w = 1.0 - np.minimum(rho_n[ref_inside], 1.0) ** (m_v / n_pl)
+        ref_z = base + t0 * u[ref_inside] + t1 * v[ref_inside] + thick * w ** (1.0 / m_v)
+        np.testing.assert_array_equal(inside, ref_inside)
+        assert z.tobytes() == ref_z.tobytes(), k
+        n_inside += int(ref_inside.sum())
+    assert n_inside > 100_000  # the comparison covered the caps, not empty outlines
+
+
 def test_larger_aggregate_gives_larger_mpd():
     base = small_cfg(160, 2048)
     big = small_cfg(160, 2048)
