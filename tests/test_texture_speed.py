@@ -7,10 +7,8 @@ import pytest
 from scipy import fft as sfft
 from scipy import ndimage
 
-from skidsim.allocator import retain_freed_memory
-from skidsim.surface import Surface
-from skidsim.texture import TextureOptions, areal_parameters, spatial
 from skidsim.texture import segmentation as seg
+from skidsim.texture import spatial
 from skidsim.texture.hybrid import developed_area, hybrid_parameters, sdq, sdr
 from skidsim.texture.material_ratio import MaterialRatio, material_ratio_parameters
 
@@ -333,14 +331,3 @@ def test_spatial_parameters_identical(field, first_window, on_border, monkeypatc
     assert_same(sp.decay_mm, lengths)
     for new, ref in ((sp.Sal, sal), (sp.Str, stri), (sp.Std, std)):
         assert new == ref or (np.isnan(new) and np.isnan(ref))
-
-
-def test_areal_parameters_same_with_retained_memory():
-    """The allocator setting changes no number (it only changes where freed arrays go)."""
-    z = Surface(pavement(160, 200, 12, quantum=0.01), 0.05, 0.05)
-    before = areal_parameters(z, "raw", TextureOptions())
-    retain_freed_memory()
-    after = areal_parameters(z, "raw", TextureOptions())
-    assert before.keys() == after.keys()
-    for k, (v, _) in before.items():
-        assert after[k][0] == v or (np.isnan(v) and np.isnan(after[k][0])), k
