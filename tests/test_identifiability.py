@@ -275,13 +275,15 @@ def test_record_round_trips_to_json_and_table_row(tmp_path):
 
 
 def test_rule_scripts_write_records_table_figure_and_warnings(tmp_path):
-    """calibration_identifiability.py per site, then calibration_summary.py: identifiability.csv with one row per
-    site, a WARNING per flagged site in both logs and the flag count in the summary log."""
+    """The records as validate_speeds.py makes them (``site_record`` with the job's logger), then
+    calibration_summary.py: identifiability.csv with one row per site, a WARNING per flagged site in both logs and
+    the flag count in the summary log."""
     import runpy
     from pathlib import Path
     from types import SimpleNamespace
 
-    from skidsim.calibration import validation_table
+    from skidsim.calibration import site_record, validation_table
+    from skidsim.runlog import setup_logging
 
     root = Path(__file__).resolve().parents[1]
 
@@ -304,22 +306,23 @@ def test_rule_scripts_write_records_table_figure_and_warnings(tmp_path):
         cal.append(str(d / "calibration_ours.json"))
         val.append(str(d / "validation.parquet"))
     pd.concat(traces).to_parquet(tmp_path / "traces.parquet")
+    all_traces = pd.read_parquet(tmp_path / "traces.parquet")
     for site in curves:
+        # what the rule validate_speeds does after its FE runs: the record of each method, its log lines
         d = tmp_path / "sites" / site
-        run(
-            "calibration_identifiability.py",
-            wildcards=SimpleNamespace(site=site, method="ours"),
-            input=SimpleNamespace(
-                calibration=str(d / "calibration_ours.json"),
-                traces=str(tmp_path / "traces.parquet"),
-                validation=str(d / "validation.parquet"),
-            ),
-            output=SimpleNamespace(record=str(d / "identifiability_ours.json")),
-            params=SimpleNamespace(
-                options={"fe_miss_max": 0.03}, calibration_speeds=list(CAL), validation_speeds=list(VAL)
-            ),
-            log=[str(tmp_path / "logs" / f"{site}.log")],
+        rec = site_record(
+            CalibrationResult.from_json(d / "calibration_ours.json"),
+            all_traces,
+            pd.read_parquet(d / "validation.parquet"),
+            site=site,
+            method="ours",
+            options=IdentifiabilityOptions.from_config({"fe_miss_max": 0.03}),
+            calibration_speeds_kmh=list(CAL),
+            validation_speeds_kmh=list(VAL),
+            source=str(tmp_path / "traces.parquet"),
+            log=setup_logging(str(tmp_path / "logs" / f"{site}.log")),
         )
+        write_json(d / "identifiability_ours.json", rec)
         ident.append(str(d / "identifiability_ours.json"))
     assert "WARNING" not in (tmp_path / "logs" / "A.log").read_text()
     assert "outside_law" in (tmp_path / "logs" / "B.log").read_text()

@@ -31,13 +31,19 @@ rule calibrate:
 
 
 rule validate_speeds:
-    """Simulate the site at calibration and validation speeds with each method's parameters."""
+    """Simulate the site at calibration and validation speeds with each method's parameters; then, from those runs
+    and the site's DFT trace, the quality and identifiability record of each method's calibration: fit vs the
+    trace's noise, flags with reasons (not_converged, at_bound, outside_law, fe_not_smooth, fit_beyond_noise),
+    standard errors, profile-likelihood intervals and the identified combinations
+    (skidsim.calibration.identifiability; no further FE runs)."""
     input:
         pavement=f"{RESULTS}/sites/{{site}}/pavement.npz",
         dft=f"{RESULTS}/ingest/dft_points.parquet",
+        traces=f"{RESULTS}/ingest/dft_traces.parquet",
         calibrations=expand(f"{RESULTS}/sites/{{{{site}}}}/calibration_{{method}}.json", method=METHODS),
     output:
         table=f"{RESULTS}/sites/{{site}}/validation.parquet",
+        records=expand(f"{RESULTS}/sites/{{{{site}}}}/identifiability_{{method}}.json", method=METHODS),
     log:
         "logs/validate_speeds/{site}.log",
     benchmark:
@@ -52,39 +58,14 @@ rule validate_speeds:
         calibration_speeds=config["speeds"]["calibration_kmh"],
         validation_speeds=config["speeds"]["validation_kmh"],
         cache=f"{RESULTS}/cache/{{site}}/fe.parquet",
+        identifiability=config["calibration"].get("identifiability", {}),
     script:
         "../scripts/validate_speeds.py"
 
 
-rule calibration_identifiability:
-    """Quality and identifiability of one site's calibration: fit vs the trace's noise, flags with reasons
-    (not_converged, at_bound, outside_law, fe_not_smooth, fit_beyond_noise), standard errors, profile-likelihood
-    intervals and the identified combinations (skidsim.calibration.identifiability; no FE runs)."""
-    input:
-        calibration=f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json",
-        traces=f"{RESULTS}/ingest/dft_traces.parquet",
-        validation=f"{RESULTS}/sites/{{site}}/validation.parquet",
-    output:
-        record=f"{RESULTS}/sites/{{site}}/identifiability_{{method}}.json",
-    log:
-        "logs/calibration_identifiability/{site}_{method}.log",
-    benchmark:
-        "benchmarks/out/calibration_identifiability/{site}_{method}.tsv"
-    threads: 1
-    resources:
-        mem_mb=500,
-        runtime=5,
-    params:
-        options=config["calibration"].get("identifiability", {}),
-        calibration_speeds=config["speeds"]["calibration_kmh"],
-        validation_speeds=config["speeds"]["validation_kmh"],
-    script:
-        "../scripts/calibration_identifiability.py"
-
-
 rule calibration_summary:
     """Table 2 (parameters per site), the cost/fit comparison of the two methods, Figure 10, the campaign's
-    identifiability table and figure (per-site records of rule calibration_identifiability)."""
+    identifiability table and figure (per-site records of rule validate_speeds)."""
     input:
         ingest=INGEST,
         calibrations=expand(f"{RESULTS}/sites/{{site}}/calibration_{{method}}.json", site=SITES, method=METHODS),

@@ -3,7 +3,7 @@
 With an input named ``ifi`` (results/ifi/ifi.csv), the PIARC/IFI speed model (method ``piarc_ifi``) is added to
 fit_statistics.csv and Figure 10 beside the FE-calibrated methods; validation.parquet stays FE-only.
 
-The per-site identifiability records (rule calibration_identifiability) become identifiability.csv and its figure;
+The per-site identifiability records (written by rule validate_speeds) become identifiability.csv and its figure;
 each flagged site gets a WARNING line here and the log ends with the count of flagged sites per flag."""
 
 import json
@@ -52,7 +52,7 @@ params = pd.DataFrame(
 traces = pd.read_parquet(snakemake.input.traces)
 measured = {s: g[["speed_kmh", "mu"]].sort_values("speed_kmh") for s, g in traces.groupby("site")}
 runs = {s: {m: g[["speed_kmh", "sn_sim"]] for m, g in gs.groupby("method")} for s, gs in vtable.groupby("site")}
-# the identifiability records (rule calibration_identifiability); a caller without them gets the other tables only
+# the identifiability records (rule validate_speeds); a caller without them gets the other tables only
 records = [json.loads(Path(p).read_text()) for p in (getattr(snakemake.input, "identifiability", None) or [])]
 ident = pd.DataFrame([identifiability.table_row(r) for r in records])
 if len(ident):

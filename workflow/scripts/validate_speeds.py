@@ -1,11 +1,13 @@
-"""Snakemake adapter: simulate a site at calibration and validation speeds with each method's parameters."""
+"""Snakemake adapter: simulate a site at calibration and validation speeds with each method's parameters; from
+those runs and the site's DFT trace, the identifiability record of each method's calibration (no further FE runs;
+skidsim.calibration.identifiability.site_record)."""
 
 import pandas as pd
 
 from skidsim import calibration
 from skidsim.calibration.cache import prefetch
 from skidsim.calibration.site import measured_points, site_simulator
-from skidsim.runlog import setup_logging, write_parquet
+from skidsim.runlog import setup_logging, write_json, write_parquet
 
 log = setup_logging(snakemake.log[0])
 site = snakemake.wildcards.site
@@ -30,4 +32,23 @@ table = calibration.validation_table(
     calibration_speeds_kmh=snakemake.params.calibration_speeds,
     validation_speeds_kmh=snakemake.params.validation_speeds,
 )
+opts = calibration.IdentifiabilityOptions.from_config(snakemake.params.identifiability)
+traces = pd.read_parquet(snakemake.input.traces)
+records = {
+    method: calibration.site_record(
+        res,
+        traces,
+        table,
+        site=site,
+        method=method,
+        options=opts,
+        calibration_speeds_kmh=[float(v) for v in snakemake.params.calibration_speeds],
+        validation_speeds_kmh=[float(v) for v in snakemake.params.validation_speeds],
+        source=snakemake.input.traces,
+        log=log,
+    )
+    for method, res in results.items()
+}
 write_parquet(snakemake.output.table, table)
+for method, path in zip(snakemake.params.methods, snakemake.output.records):
+    write_json(path, records[method])

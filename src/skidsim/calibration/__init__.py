@@ -59,10 +59,11 @@ from skidsim.calibration.tables import (
     validation_table,
 )
 
-#: names of .identifiability imported on first use (PEP 562): it loads scipy.special, which the workflow's parse
-#: (prior_reference_sites) and the calibrate / validate_speeds jobs never need (they import no scipy at all)
+#: names of .identifiability imported on first use (PEP 562): the workflow's parse (prior_reference_sites) and the
+#: calibrate jobs never need it; the validate_speeds jobs load it after their FE runs, for the identifiability records
 _IDENTIFIABILITY_NAMES = (
     "assess",
+    "site_record",
     "FLAGS",
     "SurrogateMap",
     "table_row",

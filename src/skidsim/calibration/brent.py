@@ -4,8 +4,8 @@
 The algorithm is scipy's ``_minimize_scalar_bounded`` (scipy/optimize/_optimize.py, BSD-3-Clause), statement for
 statement, so that every number is the one scipy gives (tests/test_calibration_brent.py compares them). It is here
 because ``import scipy.optimize`` costs about 0.3 s (it loads scipy.linalg, scipy.spatial, scipy.fft and
-scipy.special) in every job that fits a law (calibrate with method ours, calibration_identifiability), and those
-jobs need nothing else of it.
+scipy.special) in every job that fits a law (calibrate with method ours, validate_speeds for its identifiability
+records), and those jobs need nothing else of it.
 """
 
 from __future__ import annotations

@@ -48,7 +48,7 @@ likelihood), :mod:`.uncertainty` (Gauss-Newton, curve combinations), :mod:`.reco
 :mod:`.assess` (the per-site record).
 """
 
-from skidsim.calibration.identifiability.assess import assess
+from skidsim.calibration.identifiability.assess import assess, site_record
 from skidsim.calibration.identifiability.flags import FLAGS
 from skidsim.calibration.identifiability.mapping import SurrogateMap, sse_of
 from skidsim.calibration.identifiability.noise import trace_noise
@@ -65,6 +65,7 @@ __all__ = [
     "curve_combinations",
     "local_uncertainty",
     "profile_intervals",
+    "site_record",
     "sse_of",
     "table_row",
     "trace_noise",

@@ -95,6 +95,55 @@ def assess(
     }
 
 
+def site_record(
+    result: CalibrationResult,
+    traces: pd.DataFrame,
+    validation: pd.DataFrame,
+    *,
+    site: str,
+    method: str | None = None,
+    options: IdentifiabilityOptions | None = None,
+    calibration_speeds_kmh: Sequence[float] | None = None,
+    validation_speeds_kmh: Sequence[float] = (),
+    source: str | None = None,
+    log=None,
+) -> dict:
+    """:func:`assess` of one site's calibration as the workflow makes it (``identifiability_<method>.json``, written
+    by the rule validate_speeds beside the FE runs it reads): the site's trace from the campaign's trace table
+    ``traces`` (site, speed_kmh, mu; sorted by speed), the rows of ``method`` (default ``result.method``) in the
+    site's validation table ``validation`` (``validation.parquet``). ``source``: the trace table's path, for error
+    messages. With a logger ``log``: one INFO line of noise and fit, one of the statement, and a WARNING per raised
+    flag with its reason."""
+    trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
+    method = method or result.method
+    rec = assess(
+        result,
+        trace,
+        validation[validation["method"] == method],
+        options=options,
+        calibration_speeds_kmh=calibration_speeds_kmh,
+        validation_speeds_kmh=validation_speeds_kmh,
+        site=site,
+        source=source,
+    )
+    if log is not None:
+        log.info(
+            "%s %s: noise sigma %.4g (%d points), FE RMSE %.4g / %.4g at calibration / validation speeds, "
+            "within noise: %s",
+            site,
+            method,
+            rec["noise"]["sigma"],
+            rec["noise"]["n"],
+            rec["fit"]["rmse_fe_calibration"],
+            rec["fit"]["rmse_fe_validation"],
+            rec["within_noise"],
+        )
+        log.info("%s %s: %s", site, method, rec["statement"])
+        for flag in rec["flags"]:
+            log.warning("%s %s: %s: %s", site, method, flag, rec["reasons"][flag])
+    return rec
+
+
 def _speeds_and_bounds(
     result: CalibrationResult, calibration_speeds_kmh: Sequence[float] | None, validation_speeds_kmh: Sequence[float]
 ) -> tuple[list[float], list[float], dict[str, tuple[float, float]]]:
