@@ -16,6 +16,12 @@ import pandas as pd
 from skidsim.errors import InputError
 
 
+def site_trace(traces: pd.DataFrame, site: str) -> pd.DataFrame:
+    """One site's DFT trace (speed_kmh [km/h], mu; sorted by speed) from the ingest's trace table (columns site,
+    speed_kmh, mu; ``dft_traces.parquet``)."""
+    return traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
+
+
 def measured_arrays(curve, *, source: str | Path | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(speeds km/h ascending, mu) of a measured curve; duplicate speeds are averaged.
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from skidsim.calibration.cache import FECache, Simulator, fe_simulator
 from skidsim.calibration.joint import calibrate_fast, surrogate_prior
+from skidsim.calibration.measured import site_trace
 from skidsim.calibration.options import JointOptions
 from skidsim.calibration.result import CalibrationResult
 from skidsim.config import config_digest, file_digest, solver_config
@@ -82,7 +83,7 @@ def calibrate_ours_site(
 
     opt = options if isinstance(options, JointOptions) else JointOptions.from_config(options)
     traces = pd.read_parquet(traces_parquet)
-    trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
+    trace = site_trace(traces, site)
     prior = None
     if prior_jsons:
         refs = [CalibrationResult.from_json(p) for p in prior_jsons]

@@ -15,7 +15,7 @@ from skidsim.calibration.identifiability.noise import trace_noise
 from skidsim.calibration.identifiability.records import statement
 from skidsim.calibration.identifiability.smoothness import fe_misses
 from skidsim.calibration.identifiability.uncertainty import site_uncertainty
-from skidsim.calibration.measured import measured_arrays
+from skidsim.calibration.measured import measured_arrays, site_trace
 from skidsim.calibration.options import DEFAULT_BOUNDS, PARAMS, IdentifiabilityOptions
 from skidsim.calibration.result import CalibrationResult
 
@@ -114,7 +114,7 @@ def site_record(
     site's validation table ``validation`` (``validation.parquet``). ``source``: the trace table's path, for error
     messages. With a logger ``log``: one INFO line of noise and fit, one of the statement, and a WARNING per raised
     flag with its reason."""
-    trace = traces[traces["site"] == site][["speed_kmh", "mu"]].sort_values("speed_kmh")
+    trace = site_trace(traces, site)
     method = method or result.method
     rec = assess(
         result,
