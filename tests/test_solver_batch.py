@@ -160,16 +160,16 @@ def test_members_with_equal_laws_share_one_preload(monkeypatch):
     """The preload does not see the test speed: the members with equal laws (the same object or an equal copy) are
     preloaded once and the others copy their twin's state; each member is still its single run bit for bit, with
     the Prony history carried through the copy."""
-    from skidsim.solver import explicit
+    from skidsim.solver import stepping
 
     preloaded = []
-    real = explicit._preload
+    real = stepping.preload
 
     def counting(m, b, out, clock):
         preloaded.append(b.ids.tolist())
         return real(m, b, out, clock)
 
-    monkeypatch.setattr(explicit, "_preload", counting)
+    monkeypatch.setattr(stepping, "preload", counting)
     cfg = SolverConfig(**BASE, prony_g=(0.3,), prony_tau_s=(2e-5,))
     other = ExponentialDecay(0.6, 0.3, 0.2)
     speeds = [20.0, 60.0, 40.0, 30.0, 50.0]
