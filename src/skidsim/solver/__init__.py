@@ -14,8 +14,8 @@ import importlib
 #: reconstruction's and the configuration's need) does not load the solver loop and pandas.
 _WHERE = {
     "SolverConfig": "config",
-    "material_from_config": "explicit",
-    "max_frequency_power_iteration": "explicit",
+    "material_from_config": "model",
+    "max_frequency_power_iteration": "model",
     "simulate": "explicit",
     "simulate_batch": "explicit",
     "RubberMaterial": "material",

@@ -1,6 +1,6 @@
 """Contact laws of one explicit step, on the bottom-face nodes of a batch of sliders (SI units).
 
-The solver (:mod:`skidsim.solver.explicit`) stores the bottom faces of the ``B`` members of a batch as one flat
+The solver (:class:`skidsim.solver.batch.Batch`) stores the bottom faces of the ``B`` members of a batch as one flat
 node set of ``B * n_face`` nodes (member ``b``'s node ``j`` is ``b * n_face + j``); every law here works node by
 node on that set, so a batch of one is the single run, bit for bit. Contact nodes come in increasing index order,
 hence grouped by member (:class:`Segments`).
@@ -18,7 +18,7 @@ friction forces, the areas and the normal forces share one ``(8, n)`` buffer (:a
 per-member sums are one reduction.
 
 The slide damping (Rayleigh or mass-proportional) acts on the whole slider and lives with the internal force in
-:mod:`skidsim.solver.explicit`.
+:mod:`skidsim.solver.stepping`.
 """
 
 from __future__ import annotations
