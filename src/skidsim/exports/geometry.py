@@ -10,14 +10,6 @@ import numpy as np
 from skidsim.errors import InputError
 from skidsim.reconstruct import Heightfield
 
-_UNIT_SCALE = {"mm": 1e3, "m": 1.0}
-
-
-def _scale(unit: str) -> float:
-    if unit not in _UNIT_SCALE:
-        raise InputError(None, "unit 'mm' or 'm'", column="unit", got=unit)
-    return _UNIT_SCALE[unit]
-
 
 def pavement_surface_mesh(hf: Heightfield) -> tuple[np.ndarray, np.ndarray]:
     """Closed triangle mesh of the pavement solid: ``(vertices (N, 3) m, faces (M, 3) int)``.

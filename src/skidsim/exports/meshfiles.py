@@ -13,7 +13,17 @@ from skidsim.errors import InputError, SkidsimError
 from skidsim.reconstruct import Heightfield
 from skidsim.slidermesh import SliderMesh
 
-from .geometry import _scale, pavement_hex_mesh, pavement_surface_mesh
+from .geometry import pavement_hex_mesh, pavement_surface_mesh
+
+#: lengths of the geometry files per metre, by ``unit``
+_UNIT_SCALE = {"mm": 1e3, "m": 1.0}
+
+
+def _scale(unit: str) -> float:
+    if unit not in _UNIT_SCALE:
+        raise InputError(None, "unit 'mm' or 'm'", column="unit", got=unit)
+    return _UNIT_SCALE[unit]
+
 
 #: one binary STL record: unit normal, three corners (float32), attribute byte count
 _STL_RECORD = np.dtype([("normals", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attributes", "<u2")])
