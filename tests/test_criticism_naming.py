@@ -24,7 +24,8 @@ import diagnosis_campaigns as dc
 
 from skidsim import criticism as cr
 from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
-from skidsim.criticism.causes import SECTION_UNEXPLAINED, Cause, section_rule
+from skidsim.criticism.causes import SECTION_UNEXPLAINED, Cause
+from skidsim.criticism.section_naming import section_rule
 from skidsim.criticism.texture_candidate import section_share
 
 #: sizes of the hidden effects of this file's campaigns
@@ -625,7 +626,9 @@ def _section_level(seed: int, effect: str, texture: str | None = None):
     section (plus a little per site); "misfit" adds a speed slope along it to the residual (the texture model's
     misfit, clustered by section as the texture designs are), "unrelated" adds nothing."""
     from skidsim.criticism.covariates import CandidateRoles, candidate_set
-    from skidsim.criticism.screening import LevelData, covariate_tests, level_context, section_rest_tests
+    from skidsim.criticism.levels import LevelData, level_context
+    from skidsim.criticism.screening import covariate_tests
+    from skidsim.criticism.section_tests import section_rest_tests
     from skidsim.criticism.texture_candidate import PCS_MEMBER, TextureMember
 
     rng = np.random.default_rng(seed)
@@ -680,7 +683,7 @@ def test_the_section_effect_left_beyond_a_column_and_the_texture_pcs():
     without the member that misfit is a section effect left beyond the column (p <= 0.01 in every seed); a section
     latent that the texture does not carry is still left beyond both (p <= 0.05 in every seed, <= 0.01 in 18 of
     20: the member's 3 columns take 3 of the 11 degrees of freedom between the sections)."""
-    from skidsim.criticism.screening import section_rest_tests
+    from skidsim.criticism.section_tests import section_rest_tests
 
     beyond_both, without = [], []
     for seed in range(20):
@@ -701,7 +704,7 @@ def test_rule_3b_names_the_column_that_carries_a_section_effect_without_its_own_
     explained. With a section effect left beyond the aggregate, with its own p above fdr, with a texture
     explanation of the section effect, or where another column explains more, section identity stays unexplained
     (or the other explanation is named)."""
-    from skidsim.criticism.causes import rank_causes
+    from skidsim.criticism.ranking import rank_causes
 
     sec = _cause("section", 1.0, section_id=True, kind="x_speed", cv=0.8)
     agg = replace(
@@ -739,7 +742,7 @@ def test_an_affine_copy_of_the_mpd_column_does_not_take_its_rank():
     """The texture table holds ETD = 1.1 MPD: its tests give MPD's statistics up to rounding in the last bits
     (drainage campaign of the workflow at seed 9: cv_msr 6.135778618160246e-05 for ETD, ...239e-05 for MPD). The
     MPD column ranks first; a real difference in the tenth digit still decides."""
-    from skidsim.criticism.causes import rank_causes
+    from skidsim.criticism.ranking import rank_causes
 
     mpd = replace(_cause("profile_MPD", 0.49, section_level=False, source="texture"), cv_msr=6.135778618160239e-05)
     etd = replace(mpd, variable="profile_ETD", cv_msr=6.135778618160246e-05)
@@ -769,7 +772,7 @@ def _mix_cov(comment=_COMMENT) -> pd.DataFrame:
 def test_split_arrangements_counts_the_partitions_a_finer_grouping_can_take():
     """Analytic: 7 HMA sections split 1 + 6 can be arranged in 7 ways; 8 split 4 + 4 in C(8, 4) / 2 = 35 (the two
     groups of equal size are interchangeable); 6 split 2 + 2 + 2 in 6! / (2!^3 3!) = 15; levels multiply."""
-    from skidsim.criticism.causes import _nests, split_arrangements
+    from skidsim.criticism.refinement import _nests, split_arrangements
 
     sec = _nests("comment", "mix", _mix_cov())
     assert sec is not None and len(sec) == 12 and split_arrangements(sec) == 7
@@ -789,7 +792,7 @@ def test_rule_3c_names_the_coarser_column_when_the_finer_split_is_section_identi
     that ranked between them. Comment stays named when its split could be established (E1, C5 and C6 with RAS, C1-C4
     without: 35 arrangements), when mix has no evidence of its own (p 0.2) or carries less than half of what
     comment explains."""
-    from skidsim.criticism.causes import rank_causes
+    from skidsim.criticism.ranking import rank_causes
 
     def col(v, share, p, p_adj, cv, sig):
         c = replace(_cause(v, share, sig=sig, cv=cv), p_value=p, p_adjusted=p_adj, dtype="categorical")
@@ -847,7 +850,10 @@ def _held_out_level(seed: int, in_measured: bool):
     slope per section (a held-out-section error of the texture model); with ``in_measured`` the measured curves
     hold the same section slopes (a section effect beyond the texture)."""
     from skidsim.criticism.covariates import CandidateRoles, candidate_set
-    from skidsim.criticism.screening import LevelData, covariate_tests, lead_basis, level_context, section_rest_tests
+    from skidsim.criticism.levels import LevelData, level_context
+    from skidsim.criticism.screening import covariate_tests
+    from skidsim.criticism.section_tests import section_rest_tests
+    from skidsim.criticism.texture_tests import lead_basis
 
     rng = np.random.default_rng(seed)
     sec = np.repeat(np.arange(12), 3)
@@ -914,8 +920,10 @@ def test_the_texture_model_of_the_section_rest_test_is_quadratic_in_the_predicti
     """`texture_model_basis`: `[1, lead columns, the curved-in member's design]` (the products and squares of the
     prediction model's two texture terms); the lead basis alone without that member, None without lead terms."""
     from skidsim.criticism.covariates import CandidateRoles, candidate_set
-    from skidsim.criticism.screening import LevelData, lead_basis, level_context, texture_model_basis
+    from skidsim.criticism.levels import LevelData, level_context
+    from skidsim.criticism.section_tests import texture_model_basis
     from skidsim.criticism.texture_candidate import texture_members
+    from skidsim.criticism.texture_tests import lead_basis
 
     rng = np.random.default_rng(0)
     sec = np.repeat(np.arange(12), 3)
@@ -1000,11 +1008,11 @@ def test_the_report_says_what_a_column_named_by_rule_3b_leaves_nothing_beyond():
 
 
 def test_the_column_net_of_the_texture_model_projects_as_an_independent_least_squares_fit():
-    """`screening._net_projection_ss`: the sum of squares of residuals R (orthogonal to the texture model F) that a
+    """`section_tests._net_projection_ss`: the sum of squares of residuals R (orthogonal to the texture model F) that a
     column explains net of F equals the drop in residual sum of squares of a least-squares fit of R on [F, column]
     against F alone (numpy lstsq, an independent implementation); for a stack of permuted bases each entry is the
     same fit with the permuted column; a column inside the span of F explains nothing."""
-    from skidsim.criticism.screening import _net_projection_ss
+    from skidsim.criticism.section_tests import _net_projection_ss
     from skidsim.criticism.texture_candidate import centred_basis
 
     rng = np.random.default_rng(3)
@@ -1043,18 +1051,19 @@ def test_rule_3d_names_the_column_that_carries_the_section_effect_beyond_the_tex
     the default fdr (0.04, more permutations) the aggregate is named too (in seed 13 by rule 3b)."""
     import diagnosis_rate_campaigns as rc
 
-    from skidsim.criticism import causes as cz
+    from skidsim.criticism import section_naming as sn
+    from skidsim.criticism.causes import BEYOND_TEXTURE
 
     t, truth = rc.make_rate_campaign("spectral", "categorical_speed", seed, texture=spectral_design_1)
     top = cr.named_cause(_rate_screen(t, seed, fdr=0.05))
     assert top is not None and top.variable == truth["variable"] == "aggregate", top
-    assert top.level == "between-site" and top.explains.endswith(cz.BEYOND_TEXTURE)
-    assert top.beyond_texture_share >= cz.BEYOND_TEXTURE_SHARE_MIN and top.beyond_texture_p <= 0.05
+    assert top.level == "between-site" and top.explains.endswith(BEYOND_TEXTURE)
+    assert top.beyond_texture_share >= sn.BEYOND_TEXTURE_SHARE_MIN and top.beyond_texture_p <= 0.05
     assert top.p_adjusted > 0.05
     top_default = cr.named_cause(_rate_screen(t, seed))
     assert top_default is not None and top_default.variable == "aggregate", top_default
-    monkeypatch.setattr(cz, "BEYOND_TEXTURE_SHARE_MIN", 1.01)
-    monkeypatch.setattr(cz, "BEYOND_TEXTURE_SHARE_LOW", 1.01)
+    monkeypatch.setattr(sn, "BEYOND_TEXTURE_SHARE_MIN", 1.01)
+    monkeypatch.setattr(sn, "BEYOND_TEXTURE_SHARE_LOW", 1.01)
     top_off = cr.named_cause(_rate_screen(t, seed, fdr=0.05))
     assert top_off is not None and top_off.label == SECTION_UNEXPLAINED, top_off
 
@@ -1066,7 +1075,8 @@ def test_rule_3d_names_a_column_below_its_share_bar_only_when_its_exact_test_sur
     (traffic polishing on the spectral generator's Rado curves, section column seeds 55 and 117 of the rates: 0.88
     with exact p 0.0005). Not a categorical one at 0.8-0.9 (a chance correlate of the `+sectionlatent` nulls: the mix,
     0.83, p 0.006); below 0.8, or without a section effect beyond the texture model in the measured curves, none."""
-    from skidsim.criticism.causes import BEYOND_TEXTURE, beyond_texture_explanations
+    from skidsim.criticism.causes import BEYOND_TEXTURE
+    from skidsim.criticism.section_naming import beyond_texture_explanations
 
     sec = replace(_cause("section", 1.0, section_id=True), section_rest_p=0.001)
 
@@ -1101,15 +1111,16 @@ def test_rule_3d_lower_tier_names_traffic_polishing_on_rado_curves(seed, spectra
     2026-12-02): rule 3d's lower tier names it for that effect. Without the tier, `section (unexplained)`."""
     import diagnosis_rate_campaigns as rc
 
-    from skidsim.criticism import causes as cz
+    from skidsim.criticism import section_naming as sn
+    from skidsim.criticism.causes import BEYOND_TEXTURE
 
     t, truth = rc.make_rate_campaign("spectral", "section_column", seed, texture=spectral_design_1)
     top = cr.named_cause(_rate_screen(t, seed))
     assert top is not None and top.variable == truth["variable"] == "cum_traffic_msa", top
-    assert top.explains == "section (between-site, main)" + cz.BEYOND_TEXTURE
-    assert cz.BEYOND_TEXTURE_SHARE_LOW <= top.beyond_texture_share < cz.BEYOND_TEXTURE_SHARE_MIN
+    assert top.explains == "section (between-site, main)" + BEYOND_TEXTURE
+    assert sn.BEYOND_TEXTURE_SHARE_LOW <= top.beyond_texture_share < sn.BEYOND_TEXTURE_SHARE_MIN
     assert top.beyond_texture_p <= 0.05 / 3 and top.p_adjusted > 0.05
-    monkeypatch.setattr(cz, "BEYOND_TEXTURE_SHARE_LOW", 1.01)
+    monkeypatch.setattr(sn, "BEYOND_TEXTURE_SHARE_LOW", 1.01)
     top_off = cr.named_cause(_rate_screen(t, seed))
     assert top_off is not None and top_off.label == SECTION_UNEXPLAINED, top_off
 
@@ -1145,7 +1156,9 @@ def _rest_null(seed: int, P: int = 999):
     Returns ({kind: section identity's test after `section_rest_tests` with the quadratic texture model F}, the
     level context, F)."""
     from skidsim.criticism.covariates import CandidateRoles, candidate_set
-    from skidsim.criticism.screening import LevelData, covariate_tests, level_context, section_rest_tests
+    from skidsim.criticism.levels import LevelData, level_context
+    from skidsim.criticism.screening import covariate_tests
+    from skidsim.criticism.section_tests import section_rest_tests
 
     rng = np.random.default_rng(seed)
     sec = np.repeat(np.arange(12), 3)
@@ -1174,8 +1187,10 @@ def test_the_rest_test_of_section_identity_holds_its_level_where_the_texture_clu
     same permutations) rejects a true null far too often: at p <= 0.05 in 14 of 80 seeds (more than 8 asserted),
     while the F ratio of the section indicators beyond the model (`section_f_ratio`) holds the level: 4 of 80 for
     the speed shapes and 0 for the site means (at most 8 asserted: nominal 4)."""
+    from skidsim.criticism.adjustment import residualise
+    from skidsim.criticism.levels import curve_responses
     from skidsim.criticism.permutations import permutation_p
-    from skidsim.criticism.screening import curve_responses, residualise, section_sum_of_squares
+    from skidsim.criticism.section_tests import section_sum_of_squares
 
     hits, plain = {"main": 0, "x_speed": 0}, 0
     G = np.zeros((36, 12))

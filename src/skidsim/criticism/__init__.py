@@ -9,10 +9,15 @@ The modules follow the path of the data (docs/model-criticism.md describes every
 * :mod:`.covariates` -- the candidate causes (sites.csv columns, texture parameters, their clusters and PCs);
 * :mod:`.adjustment`, :mod:`.crossval`, :mod:`.permutations` -- designs, cross-validated SSE, permutations;
 * :mod:`.screening` -- every candidate tested at every level; :mod:`.fdr` -- false-discovery control;
+* :mod:`.levels` -- what the tests of one level share (its residual matrix, candidates, permutations) and the
+  record of one test;
 * :mod:`.texture_candidate` -- the texture model as a candidate cause (richer texture models tested as one unit)
-  and the share of the section effect a candidate explains;
-* :mod:`.causes` -- :class:`Cause` records and the ranking that names the top cause (with the naming rule of a
-  section effect, :func:`section_rule`);
+  and the share of the section effect a candidate explains; :mod:`.texture_tests` -- their tests, and the
+  texture columns beyond the prediction model's terms;
+* :mod:`.section_tests` -- the section effect left beyond a column and beyond the texture model;
+* :mod:`.causes` -- :class:`Cause` records, their labels and categories;
+* :mod:`.section_naming` -- the naming rule of a section effect (:func:`section_rule`); :mod:`.refinement` --
+  parsimony between nested section-level groupings; :mod:`.ranking` -- the ranking that names the top cause;
 * :mod:`.extensions` -- the physical and generic extensions and the choice for a named cause;
 * :mod:`.scopes`, :mod:`.recalibration`, :mod:`.gain` -- cross-fitting on held-out speeds and sites, bootstrap
   gain; :mod:`.fe_extension` -- the viscoelastic FE extension; :mod:`.report` -- the output files.
@@ -28,18 +33,7 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from .adjustment import added_variable, texture_model_scores
-from .causes import (
-    CATEGORIES,
-    MISFIT_CORRELATE,
-    SECTION_SHARE_MIN,
-    SECTION_UNEXPLAINED,
-    TEXTURE_MISFIT,
-    Cause,
-    named_cause,
-    order_by_refinement,
-    refines,
-    section_rule,
-)
+from .causes import CATEGORIES, MISFIT_CORRELATE, SECTION_UNEXPLAINED, TEXTURE_MISFIT, Cause
 from .covariates import (
     DEFAULT_EXCLUDE,
     CandidateRoles,
@@ -53,10 +47,14 @@ from .fdr import adjust_pvalues, auto_permutations
 from .gain import baseline_gain, evaluate_extension, measure_gain
 from .inputs import DiagnosisInputs, read_workflow_inputs
 from .options import DiagnosisOptions
+from .ranking import named_cause
+from .refinement import order_by_refinement, refines
 from .report import write_outputs
 from .residuals import LEVELS, build_residuals
-from .screening import column_beyond_lead, screen_candidates
+from .screening import screen_candidates
+from .section_naming import SECTION_SHARE_MIN, section_rule
 from .texture_candidate import is_texture_model, texture_model_term
+from .texture_tests import column_beyond_lead
 
 __all__ = [
     "DiagnosisInputs",
@@ -115,7 +113,7 @@ class DiagnosisResult:
 
 def _beyond_lead_texture(top, residuals, cov, texture, lead, options) -> pd.DataFrame | None:
     """The texture table for the extension of a texture column named between sites: the column replaced by its
-    part beyond the prediction model's terms (:func:`~skidsim.criticism.screening.column_beyond_lead`), which is
+    part beyond the prediction model's terms (:func:`~skidsim.criticism.texture_tests.column_beyond_lead`), which is
     what the screening tested, at every site of the table; else the table as it is."""
     if (
         texture is None

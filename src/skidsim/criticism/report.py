@@ -184,9 +184,9 @@ def _share(c: dict, key: str) -> float:
 
 
 def _other_kind_lines(top: dict | None, clist: list[dict]) -> list[str]:
-    """Rule 3e of the naming rule (:func:`skidsim.criticism.causes._column_beyond_texture`; a section effect whose
-    ``explanation_rule`` is "3e" and ``explained_by`` the named cause's test): the named section-level column is
-    also the explanation of the significant section effect of the other kind at its level, which its test of that
+    """Rule 3e of the naming rule (:func:`skidsim.criticism.section_naming._column_beyond_texture`; a section effect
+    whose ``explanation_rule`` is "3e" and ``explained_by`` the named cause's test): the named section-level column
+    is also the explanation of the significant section effect of the other kind at its level, which its test of that
     kind (not significant on its own, less than half of the residual's section effect) carries beyond the texture
     model."""
     if top is None:

@@ -1,6 +1,6 @@
 """The texture model as a candidate cause (docs/model-criticism.md, section 2, "The texture model as a candidate
 cause"), and the share of the section effect a candidate explains (the naming rule of
-:func:`skidsim.criticism.causes.rank_causes`).
+:func:`skidsim.criticism.ranking.rank_causes`).
 
 A between-site residual that clusters by section is either a property of the sections that the texture does not
 carry (section identity, a section-level column such as the mix or the traffic), or a misfit of the texture
@@ -23,7 +23,7 @@ texture models (*members*), each a 3-column design built from the texture alone,
 
 is tested against the between-site residual (site means, ``main``) by the same nested permutations as every
 covariate, and, where section identity x speed is significant between sites, against the residual's speed profiles
-(``x_speed``: :func:`skidsim.criticism.screening.texture_speed_tests`, a child family of that section effect).
+(``x_speed``: :func:`skidsim.criticism.texture_tests.texture_speed_tests`, a child family of that section effect).
 The members of one kind are one testing unit (``main``: primary family) tested by their max-statistic (all
 members have 3 columns, so their sums of squares share one scale): an exact permutation p-value of "no richer
 texture model explains the residual", and the member with the largest statistic says which measure or which form.

@@ -1,0 +1,85 @@
+"""The ranking that names the top cause: the rules that make a column significant as an explanation, the order by
+evidence, then the parsimony rules (refinement, the naming rule of a section effect, MPD x speed above its texture
+clusters, the functional form below a covariate x speed) (:func:`rank_causes`, :func:`named_cause`).
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from .causes import Cause
+from .options import DiagnosisOptions
+from .refinement import _descriptions_at_their_groupings, order_by_refinement, refinement_descriptions
+from .section_naming import beyond_texture_explanations, section_explanations, section_rule
+
+
+def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
+    """The physical hypothesis on the MPD column ranks above the texture clusters that hold MPD (e.g. drainage
+    makes the texture model misfit the level of shallow-texture sites: the macrotexture height cluster is
+    significant between sites; MPD x speed names the mechanism), and above a texture-model candidate x speed built
+    on MPD (``texture_model[nonlinear in <MPD>]``, x_speed: its cubic nests the drainage hypothesis's linear
+    column, and the physical hypothesis is the more specific name). In place."""
+    if mpd_col is None:
+        return
+    mp = [k for k, c in enumerate(causes) if c.significant and c.variable == mpd_col and c.kind == "x_speed"]
+
+    def holds_mpd(c: Cause) -> bool:
+        if c.source == "texture_model":
+            axes = (mpd_col, f"log({mpd_col})")
+            return c.kind == "x_speed" and c.variable in {f"texture_model[nonlinear in {a}]" for a in axes}
+        return mpd_col in c.group and c.unit is not None and str(c.unit).startswith("cluster:")
+
+    above = [k for k, c in enumerate(causes) if c.significant and mp and k < mp[0] and holds_mpd(c)]
+    if mp and above:
+        causes.insert(above[0], causes.pop(mp[0]))
+
+
+def _shape_below_its_covariate(causes: list[Cause]) -> None:
+    """Hierarchy of within-site shapes: where the functional form and a covariate x speed are both significant
+    within sites, the shape's amplitude follows the covariate and the shared shape is its mean over the sites; the
+    covariate names the mechanism (its model, shared profile + covariate x profile, nests the functional form's),
+    so the functional form ranks right below the first such cause. In place."""
+    ff = [k for k, c in enumerate(causes) if c.significant and c.kind == "functional_form" and c.level == "within-site"]
+    xs = [k for k, c in enumerate(causes) if c.significant and c.kind == "x_speed" and c.level == "within-site"]
+    if ff and xs and ff[0] < xs[0]:
+        causes.insert(xs[0], causes.pop(ff[0]))
+
+
+def _tie(x: float) -> float:
+    """``x`` to 10 significant digits: an affine copy of a column (the texture stage's ETD = 1.1 MPD) gets the same
+    statistics up to rounding in the last bits, which should not decide the order."""
+    return float(f"{x:.10g}")
+
+
+def _rank_key(c: Cause, mpd_col: str | None) -> tuple:
+    """The ranking's sort key (:func:`rank_causes`): significant first, then cv_msr (significant) or p_adjusted,
+    then z; on ties (to 10 digits) the MPD column first."""
+    return (not c.significant, _tie(-c.cv_msr) if c.significant else c.p_adjusted, _tie(-c.z), c.variable != mpd_col)
+
+
+def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr: float | None = None) -> list[Cause]:
+    """Rules 3b, 3d and 3c of the naming rule of a section effect first (:func:`section_explanations`,
+    :func:`beyond_texture_explanations`, :func:`refinement_descriptions`, at ``fdr``; None: the default of
+    :class:`~skidsim.criticism.options.DiagnosisOptions`); then
+    significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
+    ``z``, and on ties (to 10 significant digits) the MPD column ``mpd_col`` first (a texture table also holds its
+    affine copies, e.g. ETD); then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
+    (:func:`section_rule`), MPD x speed above the texture clusters holding MPD, the within-site functional form
+    below a significant within-site covariate x speed."""
+    if fdr is None:
+        fdr = DiagnosisOptions().fdr
+    causes = section_explanations(causes, fdr)
+    causes = beyond_texture_explanations(causes, fdr)
+    causes = refinement_descriptions(causes, cov, fdr)
+    causes = sorted(causes, key=lambda c: _rank_key(c, mpd_col))
+    _descriptions_at_their_groupings(causes)
+    causes = order_by_refinement(causes, cov)
+    causes = section_rule(causes, fdr=fdr)
+    _mpd_above_its_clusters(causes, mpd_col)
+    _shape_below_its_covariate(causes)
+    return causes
+
+
+def named_cause(causes: list[Cause]) -> Cause | None:
+    """The top significant cause, or None."""
+    return causes[0] if causes and causes[0].significant else None
