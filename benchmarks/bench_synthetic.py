@@ -28,9 +28,15 @@ from skidsim.generators import default as S
 
 
 def _old_module(root: Path):
-    """``skidsim.generators.default`` of another checkout (its ``src``), loaded beside this one's."""
+    """``skidsim.generators.default`` of another checkout (its ``src``), loaded beside this one's: the module
+    ``default.py`` of older checkouts or the package ``default/`` (its modules load from that checkout too)."""
     name = "skidsim.generators._bench_old_default"
-    spec = importlib.util.spec_from_file_location(name, root / "src" / "skidsim" / "generators" / "default.py")
+    where = root / "src" / "skidsim" / "generators"
+    if (where / "default.py").exists():
+        spec = importlib.util.spec_from_file_location(name, where / "default.py")
+    else:
+        pkg = where / "default"
+        spec = importlib.util.spec_from_file_location(name, pkg / "__init__.py", submodule_search_locations=[str(pkg)])
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod  # dataclasses look their module up
     spec.loader.exec_module(mod)
@@ -38,8 +44,10 @@ def _old_module(root: Path):
 
 
 def _timed_render(mod, calls: list):
-    """``mod.generate_site`` with ``mod._render`` timed (CPU s appended to ``calls``)."""
-    inner = mod._render
+    """``mod.generate_site`` with ``_render`` timed (CPU s appended to ``calls``), patched in the module that calls
+    it (the one that holds ``synthesize_surface``: ``mod`` itself, or its ``surface`` module)."""
+    home = sys.modules[mod.synthesize_surface.__module__]
+    inner = home._render
 
     def render(*args, **kwargs):
         c0 = time.process_time()
@@ -47,7 +55,7 @@ def _timed_render(mod, calls: list):
         calls.append(time.process_time() - c0)
         return out
 
-    mod._render = render
+    home._render = render
     return mod
 
 
