@@ -31,7 +31,7 @@ functions, with only the seed changed (the tests use seed 7):
   issue's and the rate campaigns' design) instead of the test's 2; the sd over the sites of the offset is 0.022 mu.
 * ``section_column_rate_size`` (not in the default list): ``section_column_36`` with the offset -0.08, sd over the
   sites 0.035 mu, the size of the rate campaigns' section-level column effect (0.037 mu on the default source,
-  docs/model-criticism.md, "Rates by effect kind").
+  docs/model-criticism-measured.md, "Rates by effect kind").
 * ``none_chips``, ``none_spectral`` (not in the default list): the campaigns of ``texture_speed`` /
   ``texture_measure`` without a hidden effect (the generator's own friction model of the texture, its random site
   and section factors, the decoy columns). Right: nothing named, a cause of the category ``texture model`` (the

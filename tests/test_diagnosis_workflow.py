@@ -6,8 +6,8 @@ analysis rules never read ``results/truth/`` (``tests/test_workflow.py::test_no_
 the DAG); the hidden variable is known to the test from its own config, never to the pipeline.
 
 Cost: small scans (60 x 120 mm at 0.2 mm), the quick solver preset (2 mm slider elements, 40 mm slide), our
-calibration only, two texture groups. Measured numbers for these campaigns are in docs/model-criticism.md
-("Hidden effects through the workflow").
+calibration only, two texture groups. Measured numbers for these campaigns are in
+docs/model-criticism-measured.md, section 3 ("Hidden effects through the workflow").
 """
 
 from __future__ import annotations
@@ -116,7 +116,7 @@ def test_workflow_names_a_hidden_metadata_effect(tmp_path):
 def test_workflow_null_campaign_names_nothing(tmp_path):
     """No hidden effect (the truth is the exponential-decay law of the texture): nothing is named and the
     gain record is the baseline. 16 sites (8 sections x 2) to keep the suite within its time budget; the 36-site
-    null campaigns measured through the workflow are in docs/model-criticism.md, section 9."""
+    null campaigns measured through the workflow are in docs/model-criticism-measured.md, section 3."""
     out = run_campaign(
         tmp_path, seed=7, effects=NO_EFFECTS, sections="[E1, E2, E3, E4, E5, E6, C1, C2]", sites_per_section=2
     )

@@ -6,7 +6,7 @@ The truth's drainage is switched to its "squeeze" form (partial hydroplaning: ``
 the study's exponential-decay law cannot absorb, and it is larger on shallow texture: within sites the calibrated
 simulation's residual shape grows with 1/Sp. The IFI form of the truth (an exponential in speed) is absorbed by
 the per-site calibration and the texture model over 20-70 km/h and is not identifiable through the workflow
-(measured in docs/model-criticism.md, section 9); this test therefore hides the form that leaves a trace.
+(measured in docs/model-criticism-measured.md, section 3); this test therefore hides the form that leaves a trace.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ Mix: the three "WMA chemical" sections (E3-E5) are 0.05 lower in friction (the t
 Mix x speed (categorical x speed): the same three sections lose low-speed friction only, 0.21 at 20 km/h falling
 to nothing at 60 km/h (the truth's section effect with ``speed_shape: low_speed``, the size of the rate campaigns'
 categorical x speed effect; 36 sites). Through the workflow it was named in seeds 7, 8 and 9 (2026-11-30,
-``benchmarks/workflow_campaigns.py``, docs/model-criticism.md section 9).
+``benchmarks/workflow_campaigns.py``, docs/model-criticism-measured.md, section 3).
 """
 
 from __future__ import annotations

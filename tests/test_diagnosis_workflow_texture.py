@@ -19,10 +19,10 @@ texture parameter x speed; for the texture measure the category ``texture model`
 decoy.
 
 Cost: 36 sites (12 sections), 300 x 600 scans at 0.2 mm, ``config/quick.yaml`` (the settings of the independent
-generators' runs of docs/model-criticism.md, section 9): both campaigns side by side (``-n 2``) in 8 min 19 s on a
-quiet 2-core machine, 2026-11-29 (the texture x speed campaign alone took 26 min 39 s on the slower machine of
-2026-11-28, shared with other work; alone, beside other work, 8 min 55 s on 2026-11-29). Measured results and
-rates: docs/model-criticism.md, "Rates by effect kind".
+generators' runs of docs/model-criticism-measured.md, section 3): both campaigns side by side (``-n 2``) in
+8 min 19 s on a quiet 2-core machine, 2026-11-29 (the texture x speed campaign alone took 26 min 39 s on the
+slower machine of 2026-11-28, shared with other work; alone, beside other work, 8 min 55 s on 2026-11-29).
+Measured results and rates: docs/model-criticism-measured.md, "Rates by effect kind".
 """
 
 from __future__ import annotations
@@ -169,7 +169,8 @@ def test_workflow_names_the_texture_model_for_an_unheld_texture_measure(tmp_path
     chips generator's own law, which the exponential-decay simulation does not follow (a real misfit, named on the
     texture-only campaigns too). With the generator's random section factors kept, a second section-level effect
     that no column carries, the workflow names ``section (unexplained)`` between sites at seed 7 (p_adjusted
-    0.0062; micro_Sq_top, the contact zone's microtexture, p 0.93 there): docs/model-criticism.md, section 9."""
+    0.0062; micro_Sq_top, the contact zone's microtexture, p 0.93 there):
+    docs/model-criticism-measured.md, section 3."""
     out = run_texture_campaign(tmp_path, "chips", "contact_micro", 2.0, section_factors=False)
     top = _between_top(out["causes"])
     assert top is not None, _summary(out["causes"])
