@@ -53,6 +53,16 @@ _STARTED = _time.time()
 
 
 onerror:
+    from skidsim.exit_hooks import cancel_rescheduling_timers
     from skidsim.runlog import failure_report
 
+    cancel_rescheduling_timers()
     failure_report("logs", since=_STARTED - 1.0)
+
+
+# Snakemake exits at once instead of waiting up to the rate limiter's timespan (profiles/default: 10 s) for its
+# last scheduler timer (skidsim.exit_hooks).
+onsuccess:
+    from skidsim.exit_hooks import cancel_rescheduling_timers
+
+    cancel_rescheduling_timers()
