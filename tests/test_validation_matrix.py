@@ -412,6 +412,22 @@ def test_several_bad_files_are_listed_at_once(good, tmp_path, capsys):
     assert any("0.0% valid" in i for i in items)
 
 
+def test_scans_checked_in_threads_give_the_same_problems_in_row_order(good, tmp_path):
+    """The workflow's first rule checks two scans at a time: the same problems, in sites.csv's row order."""
+    from skidsim import validate as v
+
+    camp = clone(good, tmp_path)
+    flip_data_byte(camp)
+    shutil.copy(camp / SCAN, camp / "scans/E1-1.x3p")  # row 2: corrupt point data
+    shutil.copy(good / SCAN, camp / SCAN)
+    all_invalid(camp)  # row 3 (E1-2): no valid height
+    found = {w: [str(e) for e in v.problems(camp, workers=w)[1]] for w in (1, 2, 4)}
+    assert found[1] == found[2] == found[4]
+    assert len(found[1]) == 2
+    assert "row 2" in found[1][0] and "corrupt point data" in found[1][0]
+    assert "row 3" in found[1][1] and "0.0% valid" in found[1][1]
+
+
 def test_traceback_only_when_asked(good, tmp_path, capsys, monkeypatch):
     camp = clone(good, tmp_path)
     no_sites(camp)

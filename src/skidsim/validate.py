@@ -29,6 +29,7 @@ from __future__ import annotations
 import hashlib
 import math
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree
@@ -515,14 +516,32 @@ def _as_row_problem(sites_csv: Path, row: int, raw: str, exc: InputError) -> Cam
     return err
 
 
-def problems(directory, req: Requirements = Requirements(), level: str = "full", progress=None):
+def _scan_rows(directory: Path, req: Requirements) -> list[tuple[int, str, Path]]:
+    """``(row, scan as written, path)`` of every site row whose scan file exists (the table check names the rest)."""
+    from .campaign import inside, site_rows
+
+    out = []
+    for line, rec in site_rows(directory):
+        raw = (rec.get("scan") or "").strip()
+        if not raw or (not req.allow_outside and not inside(directory, raw)):
+            continue
+        p = Path(raw).expanduser()
+        p = p if p.is_absolute() else directory / p
+        if p.is_file():
+            out.append((line, raw, p))
+    return out
+
+
+def problems(directory, req: Requirements = Requirements(), level: str = "full", progress=None, workers: int = 1):
     """Every problem of a campaign at ``level``: ``(campaign or None, [InputError, ...])``.
 
-    ``progress``: optional callable ``(n_done)`` after each scan.
+    ``progress``: optional callable ``(n_done)`` after each scan. ``workers`` > 1 checks that many scans at a time
+    in threads (decompression, MD5 and the array checks release the GIL); the problems come in row order either
+    way.
     """
     if level not in LEVELS:
         raise ValueError(f"level must be one of {LEVELS}, got {level!r}")
-    from .campaign import SITES_FILE, inside, site_rows
+    from .campaign import SITES_FILE
 
     out = check_config(req)
     camp, table = check_table(directory, req, points=level != "table")
@@ -531,21 +550,13 @@ def problems(directory, req: Requirements = Requirements(), level: str = "full",
         return camp, out
     directory = Path(directory).expanduser().absolute()
     sites_csv = directory / SITES_FILE
-    rows = site_rows(directory)
-    checked = 0
-    for line, rec in rows:
-        raw = (rec.get("scan") or "").strip()
-        if not raw or (not req.allow_outside and not inside(directory, raw)):
-            continue
-        p = Path(raw).expanduser()
-        p = p if p.is_absolute() else directory / p
-        if not p.is_file():
-            continue
-        for exc in check_scan(p, req, level):
-            out.append(_as_row_problem(sites_csv, line, raw, exc))
-        checked += 1
-        if progress is not None:
-            progress(checked)
+    rows = _scan_rows(directory, req)
+    with ThreadPoolExecutor(max_workers=max(1, int(workers))) as pool:
+        found = pool.map(lambda r: check_scan(r[2], req, level), rows)
+        for checked, ((line, raw, _), scan_problems) in enumerate(zip(rows, found), start=1):
+            out += [_as_row_problem(sites_csv, line, raw, exc) for exc in scan_problems]
+            if progress is not None:
+                progress(checked)
     return camp, out
 
 
@@ -570,9 +581,11 @@ def summary_error(directory, found: list[InputError]) -> InputError:
     return err
 
 
-def check_campaign(directory, req: Requirements = Requirements(), level: str = "full", progress=None):
-    """The validated :class:`~skidsim.campaign.Campaign`, or one error listing every problem (:func:`summary_error`)."""
-    camp, found = problems(directory, req, level, progress)
+def check_campaign(directory, req: Requirements = Requirements(), level: str = "full", progress=None, workers: int = 1):
+    """The validated :class:`~skidsim.campaign.Campaign`, or one error listing every problem (:func:`summary_error`).
+
+    ``workers``: scans checked at a time (:func:`problems`)."""
+    camp, found = problems(directory, req, level, progress, workers)
     if found or camp is None:
         raise summary_error(directory, found)
     return camp

@@ -11,7 +11,7 @@ scan_process_memory()  # scan-sized arrays: reused heap, small pages (speed only
 log = setup_logging(snakemake.log[0])
 level = validate.IngestOptions.from_dict(snakemake.config.get("ingest")).level
 req = validate.Requirements.from_config(snakemake.config)
-camp = validate.check_campaign(snakemake.params.campaign, req, level=level)
+camp = validate.check_campaign(snakemake.params.campaign, req, level=level, workers=snakemake.threads)
 sites = camp.sites.copy()
 sites["scan"] = sites["scan"].astype(str)
 sites["dft"] = sites["dft"].astype(str)
