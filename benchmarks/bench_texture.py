@@ -95,13 +95,14 @@ def site_scan(site: str) -> Surface:
     """A site of the embedded synthetic campaign (default config) as its scanner writes it (0.01 mm codes, tilt,
     dropouts, speckle), with the X3P metadata the despeckle reads (integer codes, Z increment)."""
     from skidsim.generators import default as syn
+    from skidsim.generators.default import surface
 
     c = syn.resolve_config(None)
     design = syn.design_campaign(c)
     row = design[design.site == site].iloc[0].to_dict()
     heights, _ = syn.synthesize_surface(row, c)
     dx = float(c["spacing_mm"])
-    scan = syn._scanner(np.random.default_rng(syn._site_seed(c["seed"], site).spawn(4)[2]), heights, c, dx)
+    scan = surface._scanner(np.random.default_rng(surface._site_seed(c["seed"], site).spawn(4)[2]), heights, c, dx)
     meta = {"x3p_dtype": "I", "z_increment_mm": float(c["z_quantum_mm"])}
     return Surface(scan, dx, dx, name=site, meta=meta)
 
@@ -374,6 +375,7 @@ def despeckle_study(path: str) -> None:
 def despeckle_synthetic(sites: list[str]) -> None:
     """See the module docstring (``--despeckle-synthetic``)."""
     from skidsim.generators import default as syn
+    from skidsim.generators.default import surface
 
     c = syn.resolve_config(None)
     design = syn.design_campaign(c)
@@ -392,9 +394,9 @@ def despeckle_synthetic(sites: list[str]) -> None:
     for site in sites:
         row = design[design.site == site].iloc[0].to_dict()
         heights, _ = syn.synthesize_surface(row, c)
-        rng_seed = syn._site_seed(c["seed"], site).spawn(4)[2]  # the scanner's draws, as generate_site
-        spiked = syn._scanner(np.random.default_rng(rng_seed), heights, c, dx)
-        clean = syn._scanner(np.random.default_rng(rng_seed), heights, dict(c, speckle_fraction=0.0), dx)
+        rng_seed = surface._site_seed(c["seed"], site).spawn(4)[2]  # the scanner's draws, as generate_site
+        spiked = surface._scanner(np.random.default_rng(rng_seed), heights, c, dx)
+        clean = surface._scanner(np.random.default_rng(rng_seed), heights, dict(c, speckle_fraction=0.0), dx)
         speckle = np.isfinite(spiked) & (spiked != clean)
         ref = characterise(Surface(clean, dx, dx, meta=meta), dict(opt, despeckle_method="local"))[0]
         ref = ref.set_index(["band", "parameter"])["value"]

@@ -303,7 +303,7 @@ def test_gaussian_reflect_is_scipy_bit_for_bit(shape, sigmas):
     axis go to SciPy itself)."""
     from scipy import ndimage
 
-    from skidsim.reconstruct import _gaussian_reflect
+    from skidsim.reconstruct.resample import _gaussian_reflect
 
     a = np.random.default_rng(7).standard_normal(shape) * 3.0 + 1.0
     ref = ndimage.gaussian_filter(a, sigma=sigmas, mode="reflect", truncate=4.0)

@@ -13,6 +13,7 @@ from scipy import fft as sfft
 from skidsim.errors import ConfigError
 from skidsim.generators import default as S
 from skidsim.generators import truth as T
+from skidsim.generators.default import surface
 
 
 def small_cfg(rows=96, cols=128, **kw):
@@ -161,7 +162,7 @@ def test_stone_cap_equals_the_whole_patch_formula():
             Y = (np.arange(-30, 31) * 0.05 * a / 1.2)[:, None]
         u, v = X * ct + Y * st, Y * ct - X * st
         base, thick, t0, t1 = -rng.uniform(0.5, 3.0), rng.uniform(0.2, 4.0), rng.normal(0, 0.06), rng.normal(0, 0.06)
-        inside, z = S._stone_cap(u, v, a, b, n_pl, m_v, base, thick, t0, t1)
+        inside, z = surface._stone_cap(u, v, a, b, n_pl, m_v, base, thick, t0, t1)
         rho_n = np.abs(u * (1.0 / a)) ** n_pl + np.abs(v * (1.0 / b)) ** n_pl
         ref_inside = rho_n < 1.0
         w = 1.0 - np.minimum(rho_n[ref_inside], 1.0) ** (m_v / n_pl)

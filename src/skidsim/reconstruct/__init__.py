@@ -16,9 +16,6 @@ One module per idea:
 
 from .heightfield import Heightfield
 from .resample import ISO_GAUSS_ALPHA, area_weights, gaussian_sigma_mm, remove_mean_plane, resample_area
-
-# _gaussian_reflect: the private SciPy-free Gaussian that tests/test_reconstruct.py reads through this package
-from .resample import _gaussian_reflect as _gaussian_reflect
 from .strip import STUDY_STRIP_LENGTH_MM, MeshOptions, pavement_strip, strip_length_mm
 
 __all__ = [

@@ -20,12 +20,6 @@ One module per idea:
 from .config import COMPONENTS, DEFAULTS, GRADATIONS, SECTION_DESIGNS, default_config, resolve_config
 from .design import METADATA_COLUMNS, design_campaign
 from .site import SiteData, generate_site, write_site, write_sites_csv
-
-# _scanner, _site_seed, _stone_cap: private helpers that tests/test_synthetic.py and benchmarks/bench_texture.py
-# read through this package
-from .surface import _scanner as _scanner
-from .surface import _site_seed as _site_seed
-from .surface import _stone_cap as _stone_cap
 from .surface import micro_field, synthesize_surface
 
 __all__ = [
