@@ -66,7 +66,7 @@ from skidsim.texture import (
     remove_form,
     separate_bands,
 )
-from skidsim.texture.features import feature_parameters
+from skidsim.texture.features import ten_point_height
 from skidsim.texture.height import height_parameters
 from skidsim.texture.hybrid import sdr
 from skidsim.texture.material_ratio import material_ratio_parameters
@@ -285,7 +285,7 @@ def ours_subset(s: Surface, workers: int) -> dict:
     hp = height_parameters(z)
     sp = spatial_parameters(z, s.dx, s.dy, workers=workers)
     mr = material_ratio_parameters(z)
-    fp = feature_parameters(z, s.dx, s.dy, exclude_edge=True)
+    fp = ten_point_height(z, s.dx, s.dy, exclude_edge=True)  # surfalize's convention: edge motifs dropped
     return {
         "Sa": hp["Sa"],
         "Sq": hp["Sq"],

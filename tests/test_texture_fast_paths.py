@@ -19,13 +19,16 @@ from skidsim.surface import Surface
 from skidsim.texture import (
     TextureOptions,
     areal_parameters,
+    basins,
     features,
     filters,
     furrows,
     height,
     hybrid,
     pairwise,
+    pruning,
     quality,
+    saddles,
     spatial,
 )
 from skidsim.texture import segmentation as seg
@@ -59,8 +62,9 @@ def small_blocks(monkeypatch):
     monkeypatch.setattr(furrows, "_BLOCK_POINTS", 400)
     monkeypatch.setattr(furrows, "_COLUMN_BLOCK_POINTS", 500)
     monkeypatch.setattr(pairwise, "LEAF_POINTS", 256)
-    monkeypatch.setattr(seg, "_BLOCK_POINTS", 150)
-    monkeypatch.setattr(seg, "_SADDLE_STRIP_POINTS", 250)
+    monkeypatch.setattr(basins, "_BLOCK_POINTS", 150)
+    monkeypatch.setattr(saddles, "_SADDLE_STRIP_POINTS", 250)
+    monkeypatch.setattr(basins, "_GATHER_BLOCK", 333)
     monkeypatch.setattr(seg, "_GATHER_BLOCK", 333)
 
 
@@ -278,13 +282,13 @@ def pair_saddles(a, b, p):
 @pytest.mark.parametrize("pct", [1.0, 5.0, 20.0])
 @pytest.mark.parametrize("share", [0.0, 0.7, 2.0])  # dominated parallel edges dropped every round, some, never
 def test_contract_leaves_same_units_and_saddles(name, pct, share, monkeypatch):
-    monkeypatch.setattr(seg, "_PARALLEL_EDGES_SHARE", share)
+    monkeypatch.setattr(pruning, "_PARALLEL_EDGES_SHARE", share)
     z = FIELDS[name]()
     t = pct / 100 * float(z.max() - z.min())
     for d in (z, -z):
         labels, n, sink = seg.catchment_basins(d)
-        a, b, sad = seg._saddles(labels, d, n)
-        got = seg._contract_leaves(a, b, sad, d.ravel()[sink], t)
+        a, b, sad = saddles._saddles(labels, d, n)
+        got = pruning._contract_leaves(a, b, sad, d.ravel()[sink], t)
         ref = ref_contract_leaves(a, b, sad, d.ravel()[sink], t)
         same(got[0], ref[0])
         for x, y in zip(pair_saddles(*got[1:]), pair_saddles(*ref[1:])):
@@ -332,7 +336,7 @@ def test_catchment_basins_of_the_flat_blocked_descent(name, blocks, request):
         assert n == rn
         same(labels, rl)
         same(sink, rs)
-        peaks = seg._descent(d, peaks=True)[2]
+        peaks = basins._descent(d, peaks=True)[2]
         same(peaks, ndimage.maximum_filter(d, footprint=np.ones((3, 3)), mode="nearest") == d)
 
 
@@ -343,12 +347,12 @@ def test_sink_labels_are_ndimage_labels(shape, share):
     rng = np.random.default_rng(int(share * 1000) + shape[1])
     for _ in range(5):
         mask = rng.random(shape) < share
-        markers, n, idx, first = seg._sink_labels(mask)
+        markers, n, idx, first = basins._sink_labels(mask)
         ref, rn = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
         assert n == rn
         same(markers, ref)
         same(idx, np.flatnonzero(mask))
-        same(first, seg._first_sinks(idx, ref.ravel()[idx], rn))
+        same(first, basins._first_sinks(idx, ref.ravel()[idx], rn))
 
 
 @pytest.mark.parametrize("rows_per_call", [1, 3, 7, 64])

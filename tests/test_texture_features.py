@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from skidsim.texture.features import feature_parameters, motif_parameters, pruning_threshold
+from skidsim.texture.features import feature_parameters, motif_parameters, pruning_threshold, ten_point_height
 from skidsim.texture.furrows import furrow_parameters
 from skidsim.texture.segmentation import segment
 
@@ -115,3 +115,37 @@ def test_furrows_concentric_rings_crofton():
     assert fp["Fden"] == pytest.approx(la_true, rel=0.05)
     assert fp["Fdmax"] == pytest.approx(0.4, rel=0.02)
     assert 0.2 < fp["Fdmean"] <= fp["Fdmax"]
+
+
+def _coded_pavement(seed=3, rows=180, cols=220):
+    """Correlated heights on 0.01 mm codes (ties, plateaus), mean removed."""
+    rng = np.random.default_rng(seed)
+    z = ndimage.gaussian_filter(rng.standard_normal((rows, cols)), 3.0)
+    z = np.round(0.6 * z / z.std() / 0.01) * 0.01
+    return z - z.mean()
+
+
+@pytest.mark.parametrize("exclude_edge", [False, True])
+@pytest.mark.parametrize("field", ["coded", "bumps"])
+def test_ten_point_height_alone_equals_feature_parameters(field, exclude_edge):
+    """S10z, S5p and S5v without areas, volumes and curvature: the same bits as feature_parameters'; the
+    segmentation without measures keeps the critical points, edge flags and bases (a lone motif's base aside)."""
+    if field == "coded":
+        zc, dx = _coded_pavement(), 0.05
+    else:
+        z, dx = bump_field()
+        zc = z - z.mean()
+    full = feature_parameters(zc, dx, dx, exclude_edge=exclude_edge)
+    alone = ten_point_height(zc, dx, dx, exclude_edge=exclude_edge)
+    assert alone.keys() == {"S10z", "S5p", "S5v"}
+    for k, v in alone.items():
+        assert v == full[k], k
+    t = pruning_threshold(zc, 5.0, "Sz")
+    for d in (zc, -zc):
+        a, b = segment(d, t, dx, dx), segment(d, t, dx, dx, measure=False)
+        np.testing.assert_array_equal(a.critical_index, b.critical_index)
+        np.testing.assert_array_equal(a.touches_edge, b.touches_edge)
+        assert np.isnan(b.volume_mm3).all() and np.isnan(b.area_mm2).all()
+        shared = np.isfinite(b.base)
+        np.testing.assert_array_equal(a.base[shared], b.base[shared])
+        assert (~shared).sum() <= 1  # only a lone motif (no saddle to another) has no base without the points

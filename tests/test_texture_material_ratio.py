@@ -1,5 +1,7 @@
 """Sk family and volume parameters against the analytic normal distribution and surfalize."""
 
+import math
+
 import numpy as np
 import pytest
 from scipy import integrate, stats
@@ -78,3 +80,45 @@ def test_against_surfalize():
     got = material_ratio_parameters(z)
     for k in ("Vmp", "Vmc", "Vvc", "Vvv", "Sk", "Spk", "Svk", "Smr1", "Smr2"):
         assert got[k] == pytest.approx(getattr(s, k)(), rel=0.01), k
+
+
+def _select_fields():
+    """Heights the selection must order exactly: 0.01 mm codes (ties) with a tilt, an LS-40-like flat binder
+    (most points on a few codes), spikes far outside the body (most bins empty) and a continuous field."""
+    rng = np.random.default_rng(11)
+    rows, cols = 1000, 1200  # 1.2 million points: bins of 5 points, few of them read by the 10,001 classes
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    codes = np.round(rng.normal(0, 0.4, (rows, cols)) / 0.01) * 0.01
+    binder = np.where(rng.random((rows, cols)) < 0.9, 0.0, np.round(rng.gamma(2, 0.3, (rows, cols)) / 0.01) * 0.01)
+    spiky = rng.normal(0, 0.2, (rows, cols))
+    spiky.flat[rng.choice(spiky.size, 30, replace=False)] = rng.choice([-50.0, 60.0], 30)
+    return {
+        "codes with tilt": codes + 2.618034e-4 * xx - 1.414214e-4 * yy,  # about 0.3 deg of tilt at 0.05 mm
+        "codes": codes,
+        "flat binder": binder + 1e-6 * xx,
+        "spikes": spiky,
+        "continuous": rng.standard_normal((rows, cols)),
+    }
+
+
+@pytest.mark.parametrize("name", list(_select_fields()))
+def test_selected_order_statistics_are_the_sorted_heights(name):
+    """The curve's heights by value bins are those of one whole sort, bit for bit, on ties, spikes and flat binder.
+    Where many points share the bins the classes fall in (codes without tilt, flat binder, spikes that stretch
+    the bins' range) the curve is read from one whole sort instead."""
+    z = _select_fields()[name]
+    desc = np.sort(z.ravel())[::-1]
+    mrc = MaterialRatio(z)
+    mr = np.linspace(0.0, 100.0, 10001)
+    pos = mr / 100.0 * (z.size - 1)
+    i0 = np.floor(pos).astype(int)
+    i1 = np.minimum(i0 + 1, z.size - 1)
+    w = pos - i0
+    np.testing.assert_array_equal(mrc.smc(mr), desc[i0] * (1 - w) + desc[i1] * w)
+    assert mrc.smc(0.0) == desc[0] and mrc.smc(100.0) == desc[-1]
+    binned = mrc._binning.sorted_all is None
+    assert binned == (name in ("codes with tilt", "continuous")), "which path ran"
+    c = float(np.median(z))
+    assert mrc.smr(c) == 100.0 * np.count_nonzero(z >= c) / z.size
+    assert mrc.volume_above(c) == pytest.approx(math.fsum(np.maximum(z - c, 0).ravel().tolist()) / z.size, rel=1e-13)
+    assert mrc.volume_below(c) == pytest.approx(math.fsum(np.maximum(c - z, 0).ravel().tolist()) / z.size, rel=1e-13)

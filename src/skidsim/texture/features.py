@@ -80,25 +80,47 @@ def feature_parameters(
     if hills is None:
         hills = segment(-zc, t, dx, dy, keep_peaks=dales is None)
     if dales is None and exclude_edge:
-        dales = segment(zc, t, dx, dy)
+        dales = segment(zc, t, dx, dy, measure=False)  # S5v reads its critical points and edge flags only
     area = (zc.shape[1] - 1) * dx * (zc.shape[0] - 1) * dy
     hk = hills.select(exclude_edge)
-    peaks = -hills.critical[hk]  # heights, descending (critical ascending in -z)
+    curv = peak_curvature(zc, hills.critical_index[hk], dx, dy, spc_half_window)
+    return {
+        "Spc": float(np.mean(curv)) if curv.size else np.nan,
+        **_ten_point(zc, t, hills, dales, exclude_edge),
+        "Spd": float(hk.sum()) / area,
+        "Shv": float(np.mean(hills.volume_mm3[hk])) if hk.any() else np.nan,
+    }
+
+
+def ten_point_height(
+    zc: np.ndarray,
+    dx: float,
+    dy: float,
+    *,
+    pruning_pct: float = 5.0,
+    pruning_reference: str = "Sz",
+    exclude_edge: bool = False,
+    sz: float | None = None,
+) -> dict[str, float]:
+    """S10z, S5p, S5v (mm) of mean-subtracted heights ``zc`` (mm) alone: the values of :func:`feature_parameters`,
+    without the passes over the points for the hills' areas and volumes, nor the peaks' curvature."""
+    t = pruning_threshold(zc, pruning_pct, pruning_reference, sz=sz)
+    hills = segment(-zc, t, dx, dy, keep_peaks=not exclude_edge, measure=False)
+    dales = segment(zc, t, dx, dy, measure=False) if exclude_edge else None
+    return _ten_point(zc, t, hills, dales, exclude_edge)
+
+
+def _ten_point(zc, t, hills: Segmentation, dales: Segmentation | None, exclude_edge: bool) -> dict[str, float]:
+    """S10z = S5p + S5v (mm): the 5 highest significant peaks of ``hills`` and the 5 deepest significant pits (of
+    ``dales``, or without it :func:`deepest_motifs` from the peaks of ``-zc``)."""
+    peaks = -hills.critical[hills.select(exclude_edge)]  # heights, descending (critical ascending in -z)
     if dales is None:  # S5v reads the 5 deepest significant pits only: no whole segmentation of the dales
         pits = deepest_motifs(zc, t, 5, sinks=hills.peaks)  # the peaks of -zc: the sinks of zc
     else:
         pits = dales.critical[dales.select(exclude_edge)]  # ascending: deepest first
     s5p = float(np.mean(peaks[:5])) if peaks.size else np.nan
     s5v = float(-np.mean(pits[:5])) if pits.size else np.nan
-    curv = peak_curvature(zc, hills.critical_index[hk], dx, dy, spc_half_window)
-    return {
-        "Spc": float(np.mean(curv)) if curv.size else np.nan,
-        "S10z": s5p + s5v,
-        "S5p": s5p,
-        "S5v": s5v,
-        "Spd": float(hk.sum()) / area,
-        "Shv": float(np.mean(hills.volume_mm3[hk])) if hk.any() else np.nan,
-    }
+    return {"S10z": s5p + s5v, "S5p": s5p, "S5v": s5v}
 
 
 def motif_parameters(
