@@ -233,7 +233,7 @@ def test_wlf_from_curves_separates_temperature_from_the_macrotexture_decay():
     T_r comes back near 20 deg C (median of 8 campaigns) with the slope of the IFI form; without it the
     macrotexture's share of the decay constants is read as temperature and T_r is biased by more than 10 K. The
     decay covariate is None where the column is missing or not positive."""
-    from skidsim.criticism.recalibration import decay_covariate, wlf_from_curves
+    from skidsim.criticism.wlf import decay_covariate, wlf_from_curves
 
     ext = TemperatureShift(decay_column="profile_MPD")
     v = np.tile(np.arange(20.0, 70.1, 2.0), (36, 1))

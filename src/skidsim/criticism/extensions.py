@@ -146,7 +146,7 @@ class TemperatureShift:
     the pure WLF speed shift); ``column`` the temperature
     column (deg C) of sites.csv. ``decay_column``: a texture column (mm, the MPD) whose log10 the reference decay
     constant of the measured curves follows across sites besides temperature
-    (:func:`skidsim.criticism.recalibration.wlf_from_curves`: the IFI speed constant Sp = 14.2 + 89.7 MPD km/h
+    (:func:`skidsim.criticism.wlf.wlf_from_curves`: the IFI speed constant Sp = 14.2 + 89.7 MPD km/h
     makes the decay of friction with speed a property of the macrotexture too); None: one reference decay
     constant for the campaign. ``texture_pcs >= 0`` (cause found by the texture-adjusted test): between sites the
     shift is evaluated at ``T_anchor + T~_i``, ``T~`` the part of T that the first ``texture_pcs`` texture

@@ -20,10 +20,10 @@ from .recalibration import (
     recalibrate,
     refit_correction,
     refit_design,
-    temperature_identifiability,
 )
 from .residuals import LEVELS, require_columns
 from .scopes import Scope, centred_speed, make_scope, site_target, site_values
+from .wlf import temperature_identifiability
 
 _DEFAULTS = DiagnosisOptions()
 #: The summary keys of gain.json's ``over_texture_refit`` and ``over_shared_level`` comparisons.
@@ -267,7 +267,7 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own
     """Whether the physical extension's own parameter is identified (gain.json ``identifiability``): for
     :class:`~skidsim.criticism.extensions.TemperatureShift` between sites, the WLF reference temperature from the
     measured curves of all sites with a permutation test of the temperatures
-    (:func:`skidsim.criticism.recalibration.temperature_identifiability`), and per fold the T_r fitted on the
+    (:func:`skidsim.criticism.wlf.temperature_identifiability`), and per fold the T_r fitted on the
     training sections (median, deg C), the folds whose T_r stayed inside its bounds and the route chosen (curves,
     or the shift of the texture model's prediction), the decay constant's texture slope of the all-sites fit
     (``decay_slope``, log10 alpha per log10 mm of ``TemperatureShift.decay_column``; None without one), and how

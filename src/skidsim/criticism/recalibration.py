@@ -15,7 +15,6 @@ import pandas as pd
 from scipy.optimize import minimize, minimize_scalar
 
 from ..errors import ConfigError, InputError
-from ..friction import KMH_PER_MS
 from .extensions import (
     DRAINAGE_FORMS,
     CovariateTerm,
@@ -28,13 +27,7 @@ from .extensions import (
     fit_exp_curves,
 )
 from .scopes import Scope, centred_speed, site_mean, site_target, site_values
-
-#: Grid points of the profile of the WLF reference temperature over its bounds.
-WLF_GRID = 41
-#: Start values of the decay constant's slope g (log10 alpha per log10 mm of the decay column) in
-#: :func:`wlf_from_curves`, and the Nelder-Mead settings of (c0, g).
-DECAY_SLOPE_GRID = (-1.5, -0.75, 0.0, 0.75, 1.5)
-NELDER_MEAD = {"xatol": 1e-4, "fatol": 1e-10, "maxfev": 200}
+from .wlf import curve_bc, decay_covariate, log10_decay_column, site_curves, wlf_from_curves
 
 # ----------------------------------------------------------------------------------------------------------------
 # texture refit
@@ -115,7 +108,7 @@ def _after_temperature(
         Tr = site_values(cov, ext.column, scope.sites)
         alpha = 10.0 ** float(theta[2]) * ext.speed_factor(Tr, float(Tr[train].mean()), float(theta[0]))
         if len(theta) > 6:  # the decay constant's texture term (theta[5] per log10 mm about theta[6])
-            lx = _log10_decay_column(ext, cov, scope.sites)
+            lx = log10_decay_column(ext, cov, scope.sites)
             alpha = alpha * 10.0 ** (float(theta[5]) * (lx - float(theta[6])))
         if len(theta) > 4:  # the law's b and c from the texture (coefficients theta[3], theta[4] on [1, PCs])
             X = refit_design(scope, cov, max(ext.texture_pcs, 0), None)
@@ -197,199 +190,6 @@ def _minimise_many(obj, bounds) -> list:
     return [float(x) for x in (r.x if r.fun <= obj(th0) else th0)]
 
 
-def _curve_bc(V: np.ndarray, Y: np.ndarray, alpha: np.ndarray):
-    """Per site the least-squares ``(b_i, c_i)`` of ``Y_i ~ b_i + c_i exp(-alpha_i s)`` and the residuals (NaN
-    padded rows as in :func:`_curve_sse`)."""
-    w = np.isfinite(Y)
-    e = np.exp(-alpha[:, None] * np.where(w, V, 0.0) / KMH_PER_MS) * w
-    yy = np.where(w, Y, 0.0)
-    n, se, see = w.sum(1), e.sum(1), (e * e).sum(1)
-    sy, sey = yy.sum(1), (e * yy).sum(1)
-    det = n * see - se * se
-    c = np.where(np.abs(det) > 1e-300, (n * sey - se * sy) / np.where(det == 0, 1, det), 0.0)
-    b = (sy - c * se) / n
-    return b, c, (b[:, None] + c[:, None] * e - yy) * w
-
-
-def _curve_sse(V: np.ndarray, Y: np.ndarray, alpha: np.ndarray) -> float:
-    """Sum over sites of the least-squares SSE of ``Y_i ~ b_i + c_i exp(-alpha_i s)`` (b, c in closed form per
-    site; ``V`` km/h and ``Y`` mu, (n, J), NaN padded)."""
-    r = _curve_bc(V, Y, alpha)[2]
-    return float((r * r).sum())
-
-
-def wlf_from_curves(
-    ext: TemperatureShift,
-    T: np.ndarray,
-    V: np.ndarray,
-    Y: np.ndarray,
-    bounds,
-    n_perm: int = 0,
-    seed: int = 0,
-    x: np.ndarray | None = None,
-) -> dict:
-    """The WLF reference temperature T_r (deg C) from the sites' measured curves.
-
-    A speed shift ``mu_i(v) = mu_ref,i(v a_T(T_i) / a_T(T_0))`` of the exponential-decay law is the law with
-    ``alpha_i = alpha_ref,i a_T(T_i) / a_T(T_0)`` (``f(k v; b, c, alpha) = f(v; b, c, k alpha)``): a per-site
-    calibration absorbs it, but across sites the decay constants follow temperature. Model of the measured points
-    (``V`` km/h, ``Y`` mu, one row per site): ``b_i + c_i exp(-alpha_i v / 3.6)`` with ``b_i, c_i`` free per site
-    (the level and the vertical shift factor) and ``log10 alpha_i = c0 + log10 a_T(T_i; T_r) - log10 a_T(T_0;
-    T_r)``, ``T_0`` the mean temperature, one reference decay constant ``c0`` for the campaign, C1 and C2
-    universal: T_r is profiled over ``WLF_GRID`` points of ``bounds`` (c0 by a grid and a bounded scalar search at
-    each), then refined by a bounded scalar search. With ``x`` (per site, the centred log10 of
-    ``ext.decay_column``, :func:`decay_covariate`) the reference decay constant follows the texture too,
-    ``log10 alpha_i = c0 + g x_i + ...`` (the IFI speed constant grows with MPD, so the decay constants of a
-    campaign spread with its macrotexture whatever the temperature; without ``g`` that spread is noise against
-    which a narrow temperature range pins T_r poorly): ``(c0, g)`` by a grid and Nelder-Mead at each T_r, in the
-    model without the WLF term too; ``decay_slope`` is g (None without ``x``).
-
-    ``identifiable``: the best T_r lies inside its bounds (at the "no effect" bound the curves show no speed shift)
-    and, with ``n_perm > 0``, the WLF term's reduction of the squared error of the model without it
-    (``log10 alpha_i = c0``, or ``c0 + g x_i``) is significant at 0.05 against ``n_perm`` permutations of the
-    temperatures over the sites (seeded; profile on a 21-point grid for observed and permuted alike; the sites'
-    own scatter of the decay constant is the noise, not the points'; with ``x`` the slope g held at its value in
-    the model without the WLF term). Returns t_ref_c, log10_alpha_ref, decay_slope, sse, sse_without (mu^2),
-    perm_p (None without permutations), identifiable and, when not identifiable, ``why``."""
-    T = np.asarray(T, float)
-    T0 = float(T.mean())
-
-    def inner(shift):
-        return _decay_fit(V, Y, shift, x)[:2]
-
-    def sse(tr):
-        return inner(ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0])[0]
-
-    lo, hi = bounds
-    grid = np.linspace(lo, hi, WLF_GRID)
-    vals = np.array([sse(g) for g in grid])
-    j = int(np.argmin(vals))
-    a, b = grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)]
-    r = minimize_scalar(sse, bounds=(a, b), method="bounded", options={"xatol": 0.05})
-    tr, best = (float(r.x), float(r.fun)) if r.fun <= vals[j] else (float(grid[j]), float(vals[j]))
-    null = _decay_fit(V, Y, np.zeros(len(T)), x)  # the model without the WLF term: (sse, c0, g)
-    sse0 = null[0]
-    _, c0, g = _decay_fit(V, Y, ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0], x)
-    p = None
-    if n_perm > 0:
-        coarse = np.linspace(lo, hi, 21)
-        # the decay slope held at the model without the WLF term (the null model's nuisance), as an offset
-        offset = 0.0 if x is None else null[2] * x
-        sse_null = _decay_fit(V, Y, np.zeros(len(T)) + offset, None)[0]
-
-        def gain_of(temps):
-            t0 = float(temps.mean())
-            ref = np.array([t0])
-            return sse_null - min(
-                _decay_fit(V, Y, ext_log10_shift(ext, temps, t_r) - ext_log10_shift(ext, ref, t_r)[0] + offset, None)[0]
-                for t_r in coarse
-            )
-
-        rng = np.random.default_rng(seed)
-        d_obs = gain_of(T)
-        d_perm = np.array([gain_of(rng.permutation(T)) for _ in range(n_perm)])
-        p = float((1 + np.sum(d_perm >= d_obs * (1 - 1e-12))) / (1 + n_perm))
-    out = {"t_ref_c": tr, "log10_alpha_ref": c0, "decay_slope": g, "sse": best, "sse_without": sse0, "perm_p": p}
-    why = None
-    if j == 0 or tr - lo < 1e-3 * (hi - lo):
-        why = "the measured curves show no WLF speed shift between sites (T_r at its 'no effect' bound)"
-    elif j == len(grid) - 1:
-        why = "T_r runs to the WLF pole (the speed shift is steeper than the WLF form allows)"
-    elif p is not None and p > 0.05:
-        why = (
-            f"the decay constants of the measured curves do not follow the WLF shift of temperature beyond chance "
-            f"(permutation p = {p:.2g}, {n_perm} permutations of the temperatures over the sites)"
-        )
-    out["identifiable"] = why is None
-    if why:
-        out["why"] = why
-    return out
-
-
-def _decay_fit(V: np.ndarray, Y: np.ndarray, shift: np.ndarray, x: np.ndarray | None) -> tuple:
-    """``(sse, c0, g)`` of the curves ``Y_i ~ b_i + c_i exp(-alpha_i v)`` with ``log10 alpha_i = c0 + g x_i +
-    shift_i`` (:func:`wlf_from_curves`): c0 by a 15-point grid and a bounded scalar search without ``x`` (g None);
-    with ``x`` c0 by the grid at g = 0, then g on :data:`DECAY_SLOPE_GRID` at that c0, then Nelder-Mead on (c0, g)
-    from the best of these."""
-
-    def f(c0, g=0.0):
-        return _curve_sse(V, Y, 10.0 ** np.clip(c0 + shift + (0.0 if x is None else g * x), -4.0, 1.0))
-
-    grid_c0 = np.linspace(-3.0, 0.5, 15)
-    if x is None:
-        vals_c0 = [f(c) for c in grid_c0]
-        m = int(np.argmin(vals_c0))
-        lo_c, hi_c = grid_c0[max(m - 1, 0)], grid_c0[min(m + 1, len(grid_c0) - 1)]
-        r = minimize_scalar(f, bounds=(lo_c, hi_c), method="bounded", options={"xatol": 1e-4})
-        if r.fun <= vals_c0[m]:
-            return float(r.fun), float(r.x), None
-        return float(vals_c0[m]), float(grid_c0[m]), None
-    c_best = min((f(c), c) for c in grid_c0)[1]
-    best = min((f(c_best, g), c_best, g) for g in DECAY_SLOPE_GRID)
-    r = minimize(lambda p: f(p[0], p[1]), [best[1], best[2]], method="Nelder-Mead", options=NELDER_MEAD)
-    if r.fun <= best[0]:
-        return float(r.fun), float(r.x[0]), float(r.x[1])
-    return float(best[0]), float(best[1]), float(best[2])
-
-
-def _log10_decay_column(ext: TemperatureShift, cov: pd.DataFrame, sites: list) -> np.ndarray | None:
-    """log10 of ``ext.decay_column`` (mm) per site of ``sites``; None without a decay column or where it is
-    missing, not finite or not positive at a site."""
-    col = ext.decay_column
-    if col is None or col not in cov.columns:
-        return None
-    v = pd.to_numeric(cov.loc[sites, col], errors="coerce").to_numpy(float)
-    if not (np.isfinite(v).all() and (v > 0).all()):
-        return None
-    return np.log10(v)
-
-
-def decay_covariate(ext: TemperatureShift, cov: pd.DataFrame, sites: list, centre: np.ndarray | None = None):
-    """Per site of ``sites`` the log10 of ``ext.decay_column`` (mm) minus its mean over the sites where
-    ``centre`` (bool mask; None: all) is true: the ``x`` of :func:`wlf_from_curves`, and that mean (log10 mm).
-    ``(None, None)`` without a decay column or where it is missing, not finite or not positive at a site (the
-    campaign's one reference decay constant)."""
-    lx = _log10_decay_column(ext, cov, sites)
-    if lx is None:
-        return None, None
-    mean = float(lx[centre].mean() if centre is not None else lx.mean())
-    return lx - mean, mean
-
-
-def ext_log10_shift(ext: TemperatureShift, T: np.ndarray, t_ref_c: float) -> np.ndarray:
-    """log10 a_T(T) (deg C) of the extension's WLF constants; T at or below the pole gives +inf (excluded)."""
-    dt = np.asarray(T, float) - float(t_ref_c)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(ext.c2_k + dt > 0, -ext.c1 * dt / (ext.c2_k + dt), np.inf)
-
-
-def site_curves(scope: Scope):
-    """Per site of the scope its measured points (speeds km/h, mu; NaN padded, equal speeds averaged) as
-    ``(V, Y)`` (n_sites, J); None with fewer than 4 speeds at the best-measured site."""
-    g = scope.rows.groupby(["site", "speed_kmh"], as_index=False)["measured"].mean()
-    J = int(g.groupby("site").size().max())
-    if J < 4:
-        return None
-    pos = {site: k for k, site in enumerate(scope.sites)}
-    V = np.full((len(scope.sites), J), np.nan)
-    Y = np.full((len(scope.sites), J), np.nan)
-    for site, gs in g.groupby("site"):
-        V[pos[site], : len(gs)] = gs["speed_kmh"].to_numpy(float)
-        Y[pos[site], : len(gs)] = gs["measured"].to_numpy(float)
-    return V, Y
-
-
-def temperature_identifiability(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, n_perm: int = 99) -> dict:
-    """:func:`wlf_from_curves` on every site of the held-out-site scope with ``n_perm`` permutations of the
-    temperatures (gain.json ``identifiability``); None without measured curves."""
-    curves = site_curves(scope)
-    if curves is None:
-        return None
-    T = site_values(cov, ext.column, scope.sites)
-    x, _ = decay_covariate(ext, cov, scope.sites)
-    return wlf_from_curves(ext, T, *curves, ext.t_ref_bounds_c(T), n_perm=n_perm, seed=0, x=x)
-
-
 def _recalibrate_temperature_between(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, train: np.ndarray):
     """Between sites: T_r from the training sites' measured curves (:func:`wlf_from_curves`; nuisance of the
     reference decay constant: the ``texture_pcs`` texture PCs of a texture-adjusted cause), then the vertical
@@ -410,7 +210,7 @@ def _recalibrate_temperature_between(ext: TemperatureShift, scope: Scope, cov: p
     alpha_tr = 10.0**alpha_ref * ext.speed_factor(Ttr, float(Ttr.mean()), fit["t_ref_c"])
     if x is not None:
         alpha_tr = alpha_tr * 10.0 ** (fit["decay_slope"] * x[train])
-    b_tr, c_tr, _ = _curve_bc(V[train], Y[train], alpha_tr)
+    b_tr, c_tr, _ = curve_bc(V[train], Y[train], alpha_tr)
     X = refit_design(scope, cov, max(ext.texture_pcs, 0), None)
     beta_b = np.linalg.lstsq(X[train], b_tr, rcond=None)[0]
     beta_c = np.linalg.lstsq(X[train], c_tr, rcond=None)[0]
