@@ -1,72 +1,27 @@
-"""X3P (ISO 25178-72, formerly ISO 5436-2 / openGPS) reader and writer for areal surfaces.
-
-An X3P file is a zip archive with
-
-* ``main.xml``: the header (Record1 axes, Record2 instrument metadata, Record3 matrix size and data links,
-  Record4 name of the checksum file);
-* ``bindata/data.bin``: the heights, little-endian, **x fastest** (a C-order ``(rows=y, cols=x)`` array, the
-  layout of :class:`skidsim.surface.Surface`);
-* ``bindata/valid.bin`` (optional): one bit per point, least-significant bit first, 1 = valid. It is the only
-  way to mark invalid points for the integer types; float types use NaN;
-* ``md5checksum.hex``: ``"<md5> *<member>"`` as ``md5sum`` writes it. The openGPS library and surfalize (and this
-  writer) store the MD5 of main.xml (``"<md5> *main.xml"``); SurfaceTopography stores the MD5 of the point data
-  (``"<MD5 IN UPPER CASE> *bindata/data.bin"``). The reader checks the member the file names (hex case ignored);
-  a bare ``<md5>`` must match main.xml or bindata/data.bin. Only a checksum that matches none is an error.
-
-Conventions that change numbers (see ``docs/data-contract.md``):
-
-* All lengths in the file are in **metres** (increments, offsets, heights); :class:`Surface` is in **mm**.
-  Increments and offsets are converted through :class:`decimal.Decimal`, so an increment written as 0.01 mm
-  reads back as exactly ``0.01`` mm.
-* Stored value ``v`` of axis CZ means height ``v * Increment + Offset`` (Increment 1, Offset 0 when absent).
-  Data types: ``I`` int16, ``L`` int32, ``F`` float32, ``D`` float64.
-* Float heights are converted m -> mm by one multiplication by 1000 (write: one division), so a ``D`` round
-  trip is exact to 1 ulp, not bit-exact. Integer heights read as ``k * inc_mm + offset_mm``: a surface whose
-  heights are ``k * 0.01`` mm round-trips bit-exactly with ``z_increment_mm=0.01`` (offset 0 when it fits).
-* Only the matrix (grid) form of feature type ``SUR`` with incremental X/Y axes and SizeZ = 1 is supported.
-"""
+"""X3P reader: the header (:class:`X3PHeader`, :func:`read_x3p_header`) and the heights (:func:`read_x3p`), with
+the checks of the archive, the checksum and the point data (:mod:`skidsim.x3p`)."""
 
 from __future__ import annotations
 
 import hashlib
 import zipfile
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
-from decimal import Decimal
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 
-from skidsim.atomic import atomic_path
-from skidsim.errors import ScanFormatError
 from skidsim.surface import Surface
 
-DTYPES = {"I": np.dtype("<i2"), "L": np.dtype("<i4"), "F": np.dtype("<f4"), "D": np.dtype("<f8")}
-"""X3P data type code -> little-endian numpy dtype."""
-
-NAMESPACE = "http://www.opengps.eu/2008/ISO5436_2"
-XSI_NAMESPACE = "http://www.w3.org/2001/XMLSchema-instance"
-MAIN_XML = "main.xml"
-DATA_BIN = "bindata/data.bin"
-VALID_BIN = "bindata/valid.bin"
-CHECKSUM_FILE = "md5checksum.hex"
-PROBING_TYPES = ("Contacting", "NonContacting", "Software")
-RECORD2_KEYS = (
-    "Date",
-    "Creator",
-    "InstrumentManufacturer",
-    "InstrumentModel",
-    "InstrumentSerial",
-    "InstrumentVersion",
-    "CalibrationDate",
-    "ProbingSystemType",
-    "ProbingSystemIdentification",
-    "Comment",
+from .format import (
+    CHECKSUM_FILE,
+    DATA_BIN,
+    DTYPES,
+    MAIN_XML,
+    _err,
+    _m_to_mm,
+    strip_namespaces,
 )
-"""Keys of ``Surface.meta`` / ``meta`` that map to Record2 (flattened element names)."""
-
-_ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed zip entry time: identical inputs give identical bytes
 
 
 @dataclass(frozen=True)
@@ -95,30 +50,6 @@ class X3PHeader:
     def shape(self) -> tuple[int, int]:
         """``(rows, cols)`` = ``(SizeY, SizeX)``."""
         return (self.size_y, self.size_x)
-
-
-def _err(path, expected, got=None, hint=None, column=None) -> ScanFormatError:
-    return ScanFormatError(path, expected, got=got, hint=hint, column=column)
-
-
-def _m_to_mm(text: str, path, what: str) -> float:
-    try:
-        return float(Decimal(text.strip()) * 1000)
-    except Exception:  # decimal.InvalidOperation and friends
-        raise _err(path, f"a number (metres) in {what}", got=text) from None
-
-
-def _mm_to_m_text(value_mm: float) -> str:
-    """Shortest decimal text of ``value_mm / 1000`` exact in decimal (no binary rounding)."""
-    d = Decimal(repr(float(value_mm))) / 1000
-    text = format(d.normalize(), "f") if d != 0 else "0"
-    return text
-
-
-def _strip_namespaces(root: ElementTree.Element) -> None:
-    for el in root.iter():
-        if isinstance(el.tag, str) and "}" in el.tag:
-            el.tag = el.tag.split("}", 1)[1]
 
 
 def _text(parent, tag, path, required=True, what=None):
@@ -184,7 +115,7 @@ def _parse_header(zf: zipfile.ZipFile, path) -> X3PHeader:
         root = ElementTree.fromstring(xml_bytes)
     except ElementTree.ParseError as exc:
         raise _err(path, "well-formed XML in main.xml", got=str(exc)) from None
-    _strip_namespaces(root)
+    strip_namespaces(root)
 
     # Record4: the checksum file (mandatory in ISO 25178-72); which member it covers: _check_checksum
     checksum_name = _text(root.find("Record4"), "ChecksumFile", path, required=False) or CHECKSUM_FILE
@@ -374,7 +305,7 @@ def read_x3p(path) -> Surface:
 
 def _read_datalist(zf, path, n) -> np.ndarray:
     root = ElementTree.fromstring(zf.read(MAIN_XML))
-    _strip_namespaces(root)
+    strip_namespaces(root)
     datums = root.findall("Record3/DataList/Datum")
     if len(datums) != n:
         raise _err(path, f"{n} Datum elements in Record3/DataList", got=len(datums))
@@ -386,184 +317,3 @@ def _read_datalist(zf, path, n) -> np.ndarray:
         except ValueError:
             raise _err(path, "a number in every Datum", got=t, column=f"Record3/DataList/Datum[{i}]") from None
     return out
-
-
-def _sub(parent, tag, text=None):
-    el = ElementTree.SubElement(parent, tag)
-    if text is not None:
-        el.text = str(text)
-    return el
-
-
-def _main_xml(hdr: dict, record2: dict) -> bytes:
-    root = ElementTree.Element(
-        "p:ISO5436_2",
-        {
-            "xmlns:p": NAMESPACE,
-            "xmlns:xsi": XSI_NAMESPACE,
-            "xsi:schemaLocation": f"{NAMESPACE} {NAMESPACE}/ISO5436_2_XML.xsd",
-        },
-    )
-    r1 = _sub(root, "Record1")
-    _sub(r1, "Revision", "ISO5436 - 2000")
-    _sub(r1, "FeatureType", "SUR")
-    axes = _sub(r1, "Axes")
-    for name, inc in (("CX", hdr["dx_mm"]), ("CY", hdr["dy_mm"])):
-        ax = _sub(axes, name)
-        _sub(ax, "AxisType", "I")
-        _sub(ax, "DataType", "D")
-        _sub(ax, "Increment", _mm_to_m_text(inc))
-        _sub(ax, "Offset", _mm_to_m_text(hdr[f"{name[1].lower()}0_mm"]))
-    cz = _sub(axes, "CZ")
-    _sub(cz, "AxisType", "A")
-    _sub(cz, "DataType", hdr["dtype"])
-    _sub(cz, "Increment", hdr["z_inc_text"])
-    _sub(cz, "Offset", hdr["z_off_text"])
-    r2 = _sub(root, "Record2")
-    _sub(r2, "Date", record2["Date"])
-    if "Creator" in record2:
-        _sub(r2, "Creator", record2["Creator"])
-    ins = _sub(r2, "Instrument")
-    for key in ("Manufacturer", "Model", "Serial", "Version"):
-        _sub(ins, key, record2.get("Instrument" + key, "unknown"))
-    _sub(r2, "CalibrationDate", record2.get("CalibrationDate", record2["Date"]))
-    probe = _sub(r2, "ProbingSystem")
-    _sub(probe, "Type", record2.get("ProbingSystemType", "Software"))
-    _sub(probe, "Identification", record2.get("ProbingSystemIdentification", "unknown"))
-    _sub(r2, "Comment", record2.get("Comment", "written by skidsim"))
-    r3 = _sub(root, "Record3")
-    dims = _sub(r3, "MatrixDimension")
-    _sub(dims, "SizeX", hdr["nx"])
-    _sub(dims, "SizeY", hdr["ny"])
-    _sub(dims, "SizeZ", 1)
-    link = _sub(r3, "DataLink")
-    _sub(link, "PointDataLink", DATA_BIN)
-    _sub(link, "MD5ChecksumPointData", hdr["data_md5"])
-    if hdr["valid_md5"] is not None:
-        _sub(link, "ValidPointsLink", VALID_BIN)
-        _sub(link, "MD5ChecksumValidPoints", hdr["valid_md5"])
-    r4 = _sub(root, "Record4")
-    _sub(r4, "ChecksumFile", CHECKSUM_FILE)
-    ElementTree.indent(root, space="  ")
-    text = '<?xml version="1.0" encoding="UTF-8" standalone="no"?>\n' + ElementTree.tostring(root, "unicode")
-    return (text + "\n").encode("utf-8")
-
-
-def _quantise(h_mm: np.ndarray, valid: np.ndarray, dtype: str, z_increment_mm, path):
-    """Integer codes, increment text (m) and offset text (m) for the integer types."""
-    info = np.iinfo(DTYPES[dtype])
-    lo_code, hi_code = info.min + 1, info.max - 1
-    hv = h_mm[valid]
-    hmin, hmax = (float(hv.min()), float(hv.max())) if hv.size else (0.0, 0.0)
-    if z_increment_mm is None:
-        # spread the valid range over the code range; quantisation error <= increment / 2
-        # (3 significant digits, rounded up so that the range still fits)
-        span = hmax - hmin
-        inc = span / (hi_code - lo_code) if span > 0 else 1e-6
-        unit = 10.0 ** (np.floor(np.log10(inc)) - 2)
-        inc = float(f"{np.ceil(inc / unit * (1 - 1e-12)) * unit:.3g}")
-    else:
-        inc = float(z_increment_mm)
-        if not (np.isfinite(inc) and inc > 0):
-            raise ValueError(f"{path}: z_increment_mm must be a positive number of mm, got {z_increment_mm!r}")
-    inc_text = _mm_to_m_text(inc)
-    inc_mm = float(Decimal(inc_text) * 1000)  # what a reader will use
-    # offset 0 when the range fits (exact round trip of k * inc), else a multiple of inc at mid-range
-    k0 = 0
-    if hv.size and (round(hmin / inc_mm) < lo_code or round(hmax / inc_mm) > hi_code):
-        k0 = int(round(0.5 * (hmin + hmax) / inc_mm))
-    off_text = _mm_to_m_text(k0 * inc_mm) if k0 else "0"
-    off_mm = float(Decimal(off_text) * 1000)
-    codes = np.zeros(h_mm.shape, dtype=np.float64)
-    np.subtract(h_mm, off_mm, out=codes, where=valid)
-    codes /= inc_mm
-    np.rint(codes, out=codes)
-    codes[~valid] = 0
-    if hv.size and (codes.min() < info.min or codes.max() > info.max):
-        raise ValueError(
-            f"{path}: heights {hmin:g}..{hmax:g} mm do not fit type {dtype} with increment "
-            f"{inc_mm:g} mm; use a larger z_increment_mm or dtype 'L'/'D'"
-        )
-    return codes.astype(DTYPES[dtype]), inc_text, off_text
-
-
-def write_x3p(
-    path,
-    surface: Surface,
-    dtype: str = "D",
-    z_increment_mm: float | None = None,
-    meta: dict | None = None,
-    compresslevel: int | None = None,
-) -> None:
-    """Write ``surface`` (heights mm) as an ISO 25178-72 X3P file (metres inside), atomically.
-
-    Parameters
-    ----------
-    dtype:
-        ``"D"`` float64, ``"F"`` float32 (heights rounded to float32 metres), ``"I"`` int16 or ``"L"`` int32
-        (quantised: ``code = rint((h - offset) / z_increment)``, invalid points in ``bindata/valid.bin``).
-    z_increment_mm:
-        Height step of the integer types in mm (e.g. 0.01 for an LS-40). ``None``: the valid height range is
-        spread over the code range (quantisation error at most half a step). Not allowed for F/D.
-    meta:
-        Record2 entries (keys :data:`RECORD2_KEYS`); overrides ``surface.meta``. ``Date`` defaults to the
-        current UTC time; pass it to make the output byte-reproducible (zip entry times are fixed).
-    compresslevel:
-        ``None`` (default) stores the members uncompressed (fast: ~0.2 s for a 2048 x 2448 scan); 1-9 deflates
-        them (level 1: ~30 % of the size for float64, 70 % for int16, but ~4x slower to write).
-
-    ``md5checksum.hex`` holds the MD5 of main.xml; main.xml states the MD5 of data.bin (and of valid.bin).
-    """
-    dtype = str(dtype).upper()
-    if dtype not in DTYPES:
-        raise ValueError(f"{path}: dtype must be one of I, L, F, D, got {dtype!r}")
-    if z_increment_mm is not None and dtype in ("F", "D"):
-        raise ValueError(f"{path}: z_increment_mm applies to the integer types I and L only, not {dtype!r}")
-    h = np.ascontiguousarray(surface.heights, dtype=np.float64)
-    valid = np.isfinite(h)
-    valid_bytes = None
-    if dtype in ("F", "D"):
-        data = (h / 1000.0).astype(DTYPES[dtype])  # mm -> m; NaN stays NaN
-        z_inc_text, z_off_text = "1", "0"
-    else:
-        data, z_inc_text, z_off_text = _quantise(h, valid, dtype, z_increment_mm, path)
-        valid_bytes = np.packbits(valid.ravel(), bitorder="little").tobytes()
-    data_bytes = data.tobytes()
-    record2 = {k: str(v) for k, v in {**(surface.meta or {}), **(meta or {})}.items() if k in RECORD2_KEYS}
-    record2.setdefault("Date", datetime.now(UTC).replace(microsecond=0).isoformat())
-    if record2.get("ProbingSystemType", "Software") not in PROBING_TYPES:
-        raise ValueError(
-            f"{path}: meta ProbingSystemType must be one of {PROBING_TYPES}, got {record2['ProbingSystemType']!r}"
-        )
-    hdr = dict(
-        nx=h.shape[1],
-        ny=h.shape[0],
-        dx_mm=surface.dx,
-        dy_mm=surface.dy,
-        dtype=dtype,
-        x0_mm=float((surface.meta or {}).get("x0_mm", 0.0)),
-        y0_mm=float((surface.meta or {}).get("y0_mm", 0.0)),
-        z_inc_text=z_inc_text,
-        z_off_text=z_off_text,
-        data_md5=hashlib.md5(data_bytes).hexdigest(),
-        valid_md5=None if valid_bytes is None else hashlib.md5(valid_bytes).hexdigest(),
-    )
-    xml = _main_xml(hdr, record2)
-    members = [(MAIN_XML, xml), (DATA_BIN, data_bytes)]
-    if valid_bytes is not None:
-        members.append((VALID_BIN, valid_bytes))
-    members.append((CHECKSUM_FILE, f"{hashlib.md5(xml).hexdigest()} *{MAIN_XML}\n".encode("ascii")))
-
-    def _write(fh):
-        with zipfile.ZipFile(fh, "w") as zf:
-            for name, payload in members:
-                info = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
-                if compresslevel is None:
-                    info.compress_type = zipfile.ZIP_STORED
-                    zf.writestr(info, payload)
-                else:
-                    info.compress_type = zipfile.ZIP_DEFLATED
-                    zf.writestr(info, payload, compresslevel=compresslevel)
-
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        _write(fh)

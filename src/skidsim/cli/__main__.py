@@ -1,0 +1,7 @@
+"""``python -m skidsim.cli``: the ``skidsim`` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())
