@@ -103,11 +103,12 @@ def build_parser() -> argparse.ArgumentParser:
     from ..texture.parameters import TextureOptions
 
     tex, mpd, mesh, solver = TextureOptions(), MPDOptions(), MeshOptions(), SolverOptions()
+    usage = sys.modules[__package__].__doc__  # skidsim.cli's docstring: the command's synopsis
     p = argparse.ArgumentParser(
         prog="skidsim",
-        description=sys.modules[__package__].__doc__.split("\n\n")[0],
+        description=usage.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog=sys.modules[__package__].__doc__,
+        epilog=usage,
     )
     p.add_argument(
         "-v",

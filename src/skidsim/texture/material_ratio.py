@@ -63,6 +63,7 @@ class _Binning:
         ub = np.flatnonzero(need)
         if self.counts[ub].sum() > _SELECT_SHARE_MAX * self.z.size:  # ties or few distinct heights: sort them all
             self.sorted_all = np.sort(self.z)
+            del self.idx, self.counts, self.cum
             return self.sorted_all[ranks]
         vals = self.z[need.take(self.idx)]  # the points of the needed bins, in bin order once sorted
         vals.sort()
@@ -74,7 +75,7 @@ class _Binning:
 class MaterialRatio:
     """The empirical material ratio curve of a complete height array (mm).
 
-    No sort of the heights: the order statistics the curve is read at are selected exactly (:func:`order_statistics`)
+    No sort of the heights: the order statistics the curve is read at are selected exactly (:meth:`_Binning.select`)
     and the volumes and material ratios are sums and counts over the points."""
 
     def __init__(self, z: np.ndarray, n_classes: int = 10001):
@@ -102,23 +103,21 @@ class MaterialRatio:
         """Material ratio (%) at height ``c`` (mm): share of points with z >= c."""
         return 100.0 * np.count_nonzero(self.z >= c) / self.n
 
-    def _excess(self, c: float, sign: float) -> float:
-        """``sum(max(sign (z - c), 0))`` in one buffer of the heights' size."""
+    def _positive_sum(self, a, b) -> float:
+        """``sum(max(a - b, 0))`` (one of ``a``, ``b`` the heights) in one buffer of the heights' size."""
         if self._buf is None:
             self._buf = np.empty(self.n)
-        b = np.subtract(self.z, c, out=self._buf)
-        if sign < 0:
-            np.negative(b, out=b)
-        np.maximum(b, 0.0, out=b)
-        return float(b.sum())
+        d = np.subtract(a, b, out=self._buf)
+        np.maximum(d, 0.0, out=d)
+        return float(d.sum())
 
     def volume_above(self, c: float) -> float:
         """``mean(max(z - c, 0))`` in mm^3/mm^2."""
-        return self._excess(c, 1.0) / self.n
+        return self._positive_sum(self.z, c) / self.n
 
     def volume_below(self, c: float) -> float:
         """``mean(max(c - z, 0))`` in mm^3/mm^2."""
-        return self._excess(c, -1.0) / self.n
+        return self._positive_sum(c, self.z) / self.n
 
     def equivalence_line(self) -> tuple[float, float]:
         """``(slope mm/%, intercept mm)`` of the ISO 25178-2 B.1 equivalent straight line."""
