@@ -26,6 +26,7 @@ import numpy as np
 from .segmentation import Segmentation, deepest_motifs, segment
 
 PRUNING_REFERENCES = ("Sz", "Sq")
+PRUNING_PCT = 5.0  # % of the reference height: the default of every function here and of TextureOptions
 
 
 def pruning_threshold(
@@ -66,8 +67,8 @@ def feature_parameters(
     dx: float,
     dy: float,
     *,
-    pruning_pct: float = 5.0,
-    pruning_reference: str = "Sz",
+    pruning_pct: float = PRUNING_PCT,
+    pruning_reference: str = PRUNING_REFERENCES[0],
     exclude_edge: bool = False,
     spc_half_window: int = 2,
     hills: Segmentation | None = None,
@@ -97,8 +98,8 @@ def ten_point_height(
     dx: float,
     dy: float,
     *,
-    pruning_pct: float = 5.0,
-    pruning_reference: str = "Sz",
+    pruning_pct: float = PRUNING_PCT,
+    pruning_reference: str = PRUNING_REFERENCES[0],
     exclude_edge: bool = False,
     sz: float | None = None,
 ) -> dict[str, float]:
@@ -128,8 +129,8 @@ def motif_parameters(
     dx: float,
     dy: float,
     *,
-    pruning_pct: float = 5.0,
-    pruning_reference: str = "Sz",
+    pruning_pct: float = PRUNING_PCT,
+    pruning_reference: str = PRUNING_REFERENCES[0],
     exclude_edge: bool = False,
     hills: Segmentation | None = None,
     sz: float | None = None,

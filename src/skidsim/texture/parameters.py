@@ -8,7 +8,7 @@ from skidsim.errors import ConfigError
 from skidsim.surface import Surface
 
 from .despeckle import METHODS
-from .features import PRUNING_REFERENCES, feature_parameters, motif_parameters, pruning_threshold
+from .features import PRUNING_PCT, PRUNING_REFERENCES, feature_parameters, motif_parameters, pruning_threshold
 from .filters import FILL_METHODS, form_degree
 from .furrows import furrow_parameters
 from .height import finite_mean, height_parameters
@@ -114,11 +114,11 @@ class TextureOptions:
     vm_p_pct: float = 10.0
     vv_q_pct: float = 80.0
     mr_classes: int = 10001
-    pruning_pct: float = 5.0
-    pruning_reference: str = "Sz"
+    pruning_pct: float = PRUNING_PCT
+    pruning_reference: str = PRUNING_REFERENCES[0]
     exclude_edge: bool = False
     spc_half_window: int = 2
-    motif_pruning_pct: float = 5.0
+    motif_pruning_pct: float = PRUNING_PCT
     furrow_window_mm: float = 2.0
     furrow_min_depth_pct: float = 5.0
     groups: tuple[str, ...] = tuple(GROUPS)
