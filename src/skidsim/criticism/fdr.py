@@ -54,10 +54,11 @@ def has_texture_family(options) -> bool:
     return "texture" in family_shares(options.primary_share, options.texture_share)
 
 
-def family_sizes(levels, candidates, texture_family: bool = False) -> dict:
+def family_sizes(levels, candidates, texture_family: bool = False, level_clusters: dict | None = None) -> dict:
     """Number of testing units per family over the screened ``levels`` (within-site: x_speed only; between-site:
     main and x_speed) of a :class:`~skidsim.criticism.covariates.CandidateSet`; with ``texture_family`` the texture
-    clusters count in a family ``texture`` of their own."""
+    clusters count in a family ``texture`` of their own; ``level_clusters``: the texture clusters of a level where
+    they are not ``candidates.clusters`` (:func:`testing_units`)."""
     m_fam = {"primary": 0, "secondary": 0, "texture": 0}
     clusters = "texture" if texture_family else "secondary"
     meta = [c for c in candidates.covariates.columns if candidates.info[c][0] != "texture"]
@@ -70,7 +71,7 @@ def family_sizes(levels, candidates, texture_family: bool = False) -> dict:
             if lv == "between-site" and kind == "main" and has_texture:
                 m_fam["primary"] += 1  # the texture model (skidsim.criticism.texture_candidate)
             m_fam["secondary"] += len(meta) - n_temp
-            m_fam[clusters] += len(candidates.clusters)
+            m_fam[clusters] += len((level_clusters or {}).get(lv, candidates.clusters))
     return m_fam
 
 
@@ -104,16 +105,23 @@ class Unit:
     members: list = field(default_factory=list)
 
 
-def testing_units(tests, candidates, texture_family: bool = False) -> dict:
+def testing_units(tests, candidates, texture_family: bool = False, level_clusters: dict | None = None) -> dict:
     """{key: Unit} over the tests: primary singles, the texture-model members (one primary unit per level and
     kind, tested by their max-statistic), texture clusters (per level and kind), secondary singles. The texture
     clusters and lone texture columns are secondary units, or with ``texture_family`` units of the family
-    ``texture``."""
+    ``texture``. ``level_clusters``: {level: clusters} where a level's tests see other columns than
+    ``candidates.clusters`` were made of (between sites: the columns beyond the prediction model's terms,
+    :func:`~skidsim.criticism.texture_tests.beyond_lead_clusters`)."""
     tex_fam = "texture" if texture_family else "secondary"
-    cluster_of = {c: k for k, members in enumerate(candidates.clusters) for c in members}
+    level_clusters = level_clusters or {}
+    clusters_at = {}
+    for lv in {t.level for t in tests}:
+        cl = level_clusters.get(lv, candidates.clusters)
+        clusters_at[lv] = (cl, {c: k for k, members in enumerate(cl) for c in members})
     units = {}
     for j, t in enumerate(tests):
         v = t.variable
+        clusters, cluster_of = clusters_at[t.level]
         if t.source == "texture_model":  # the richer texture models: one unit, max-statistic (primary family)
             key, fam, name = ("texture_model", t.level, t.kind), "primary", None
         elif (
@@ -122,7 +130,7 @@ def testing_units(tests, candidates, texture_family: bool = False) -> dict:
             or (v == candidates.mpd and t.kind == "x_speed")
         ):
             key, fam, name = ("single", j), "primary", v
-        elif v in cluster_of and len(candidates.clusters[cluster_of[v]]) > 1:
+        elif v in cluster_of and len(clusters[cluster_of[v]]) > 1:
             key, fam, name = ("cluster", t.level, t.kind, cluster_of[v]), tex_fam, None
         else:
             fam = tex_fam if v in cluster_of else "secondary"
@@ -186,11 +194,11 @@ class Adjustment:
     unit_p: dict
 
 
-def adjust(tests, candidates, options) -> Adjustment:
+def adjust(tests, candidates, options, level_clusters: dict | None = None) -> Adjustment:
     """Permutation p-values, testing units, per-family step-up adjustment (p_adjusted on the fdr scale: the
     family-adjusted unit p / share; for a cluster member at least its within-cluster maxT p), gatekeeper."""
     pvals = np.array([permutation_p(t.T, t.Tp) for t in tests])
-    units = testing_units(tests, candidates, has_texture_family(options))
+    units = testing_units(tests, candidates, has_texture_family(options), level_clusters)
     unit_p, wy_p = _unit_pvalues(tests, units, pvals)
     share = family_shares(options.primary_share, options.texture_share)
     unit_adj = {}

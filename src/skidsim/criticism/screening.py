@@ -40,7 +40,7 @@ from .ranking import rank_causes
 from .residuals import require_columns, texture_model_shape
 from .section_tests import section_rest_tests, texture_model_basis
 from .texture_candidate import section_share
-from .texture_tests import _members, texture_beyond_lead, texture_model_tests, texture_speed_tests
+from .texture_tests import _members, beyond_lead_clusters, texture_beyond_lead, texture_model_tests, texture_speed_tests
 
 
 @dataclass
@@ -292,7 +292,12 @@ def screen_candidates(
     cands = candidate_set(sites, texture_wide, roles, options.cluster_rho)
     data = level_data(residuals, options)
     ff_delta = _between_shape(residuals, data, options.speed_bin_kmh)
-    P = permutation_count(family_sizes(data, cands, has_texture_family(options)), options)
+    level_clusters = {}
+    for lv, d in data.items():
+        cl = beyond_lead_clusters(d, cands, texture_lead, options.cluster_rho)
+        if cl is not None:
+            level_clusters[lv] = cl
+    P = permutation_count(family_sizes(data, cands, has_texture_family(options), level_clusters), options)
     rng = np.random.default_rng(options.seed)
     tests, between = [], None
     for d in data.values():
@@ -309,7 +314,7 @@ def screen_candidates(
         if ctx.amp_col is not None:
             tests.append(mpd_amplitude_test(ctx))
         tests.append(functional_form_test(ctx, ff_delta, P, rng))
-    adjustment = adjust(tests, cands, options)
+    adjustment = adjust(tests, cands, options, level_clusters)
     causes = make_causes(tests, adjustment, cands, options, P)
     if between is not None:
         causes += texture_speed_tests(*between, causes, cands, options, P)

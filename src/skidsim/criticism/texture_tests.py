@@ -148,7 +148,29 @@ def texture_beyond_lead(ctx: LevelContext, cands: CandidateSet, lead) -> None:
     for c, (source, dtype) in ctx.info.items():
         if source != "texture" or dtype != "numeric" or c not in ctx.bases or ctx.bases[c].shape[1] != 1:
             continue
-        z = residualise(ctx.bases[c], F)[:, 0]
+        x = ctx.C[c].to_numpy(float)
+        z = residualise(ctx.bases[c], F)[:, 0] * np.sign(ctx.bases[c][:, 0] @ (x - x.mean()))  # the column's sign
         nz = float(np.linalg.norm(z))
         ctx.bases[c] = (z / nz)[:, None] if nz > 1e-8 * np.sqrt(ctx.n) else np.zeros((ctx.n, 0))
         ctx.cv_columns[c] = pd.Series(z, index=ctx.C.index)
+
+
+def beyond_lead_clusters(data: LevelData, cands: CandidateSet, lead, rho: float) -> list[list[str]] | None:
+    """The texture clusters of the between-site level ``data`` on what its tests see: each numeric texture column's
+    part beyond the prediction model's terms ``lead`` (orthogonal to :func:`lead_basis`, as
+    :func:`texture_beyond_lead` makes its basis), clustered as
+    :func:`~skidsim.criticism.covariates.texture_clusters` clusters the columns themselves (|Spearman rho| >=
+    ``rho`` across the level's sites, complete linkage). Two columns that go together across sites part where the
+    lead terms hold what they share, so the cluster of the columns would test such a column by a maximum over
+    members whose tested parts are unrelated. None within sites, without lead terms or without texture columns
+    (the level tests the columns themselves: their clusters)."""
+    tex = [c for c in cands.covariates.columns if cands.info[c] == ("texture", "numeric")]
+    F = lead_basis(data, cands.covariates, lead) if data.level == "between-site" and tex else None
+    if F is None:
+        return None
+    X = cands.covariates.loc[data.site_ids, tex].apply(pd.to_numeric, errors="coerce").to_numpy(float)
+    ok = np.isfinite(X).all(axis=0)
+    Z = pd.DataFrame(residualise(X[:, ok], F), columns=[c for c, k in zip(tex, ok) if k])
+    from .covariates import texture_clusters
+
+    return texture_clusters(Z, {c: cands.info[c] for c in Z.columns}, rho) + [[c] for c, k in zip(tex, ok) if not k]
