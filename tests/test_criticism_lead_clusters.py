@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 from scipy.stats import spearmanr
 
 from skidsim import criticism as cr
@@ -12,6 +13,7 @@ from skidsim.criticism import DiagnosisOptions, texture_tests
 from skidsim.criticism.covariates import CandidateRoles, candidate_set
 from skidsim.criticism.levels import level_data
 from skidsim.criticism.residuals import build_residuals
+from skidsim.errors import InputError
 
 LEAD = ("log(profile_MPD)", "log(micro_Sq)")
 SPEEDS_KMH = np.arange(20.0, 71.0, 10.0)
@@ -93,3 +95,11 @@ def test_a_column_named_between_sites_for_its_part_beyond_the_lead_is_tested_as_
     assert joint.unit == "cluster:macro_Sq" and joint.group == own.group
     assert joint.p_value == own.p_value and joint.statistic == own.statistic
     assert joint.unit_p > 2 * joint.p_value and joint.p_adjusted > own.p_adjusted
+
+
+def test_a_site_without_a_row_is_named_with_the_lead_terms_given():
+    """The clusters between sites are built before the levels; a residual site missing from the sites table is
+    still reported by the level's clear error (InputError naming the sites table and the site), not a KeyError."""
+    res, sites, tex = _campaign(0.0)
+    with pytest.raises(InputError, match="s35"):
+        cr.screen_candidates(res, sites[sites["site"] != "s35"], tex, DiagnosisOptions(seed=3), texture_lead=LEAD)

@@ -165,7 +165,9 @@ def beyond_lead_clusters(data: LevelData, cands: CandidateSet, lead, rho: float)
     members whose tested parts are unrelated. None within sites, without lead terms or without texture columns
     (the level tests the columns themselves: their clusters)."""
     tex = [c for c in cands.covariates.columns if cands.info[c] == ("texture", "numeric")]
-    F = lead_basis(data, cands.covariates, lead) if data.level == "between-site" and tex else None
+    if data.level != "between-site" or not tex or not set(data.site_ids) <= set(cands.covariates.index):
+        return None  # (a site without a row: level_context names it)
+    F = lead_basis(data, cands.covariates, lead)
     if F is None:
         return None
     X = cands.covariates.loc[data.site_ids, tex].apply(pd.to_numeric, errors="coerce").to_numpy(float)
