@@ -11,7 +11,7 @@ import pandas as pd
 
 from .adjustment import lead_design, residualise
 from .causes import Cause, make_causes
-from .covariates import CandidateSet, scores_for
+from .covariates import CandidateSet, scores_for, texture_clusters
 from .crossval import cv_sse_design, folds
 from .levels import CandidateTest, LevelContext, LevelData, level_data
 from .options import DiagnosisOptions
@@ -173,6 +173,4 @@ def beyond_lead_clusters(data: LevelData, cands: CandidateSet, lead, rho: float)
     X = cands.covariates.loc[data.site_ids, tex].apply(pd.to_numeric, errors="coerce").to_numpy(float)
     ok = np.isfinite(X).all(axis=0)
     Z = pd.DataFrame(residualise(X[:, ok], F), columns=[c for c, k in zip(tex, ok) if k])
-    from .covariates import texture_clusters
-
     return texture_clusters(Z, {c: cands.info[c] for c in Z.columns}, rho) + [[c] for c, k in zip(tex, ok) if not k]
