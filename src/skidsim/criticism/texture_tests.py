@@ -113,23 +113,33 @@ def lead_basis(data: LevelData, cov: pd.DataFrame, lead) -> np.ndarray | None:
     return None if L is None else np.c_[np.ones(len(data.site_ids)), L]
 
 
-def column_beyond_lead(
-    residuals: pd.DataFrame, cov: pd.DataFrame, column: str, lead, options: DiagnosisOptions
-) -> pd.Series | None:
-    """The part of the numeric column ``column`` of ``cov`` (one row per site) orthogonal to :func:`lead_basis` over
-    the between-site sites (index: those sites; the column's units): what a texture column named between sites
-    adds beyond the prediction model's terms, the column its extension is fitted on (the residual has lost the
-    rest; :func:`texture_beyond_lead`). None without between-site residuals or a lead basis."""
-    data = level_data(residuals, options).get("between-site")
-    if data is None or column not in cov.columns:
-        return None
+def parts_beyond_lead(data: LevelData, cov: pd.DataFrame, columns, lead) -> pd.DataFrame | None:
+    """The parts of the numeric ``columns`` of ``cov`` (one row per site) orthogonal to :func:`lead_basis` over the
+    between-site sites of ``data`` (index: those sites; each column's units): what a texture column adds beyond the
+    prediction model's terms. A column with a missing or non-numeric value at one of those sites is left out.
+    None without a lead basis."""
     F = lead_basis(data, cov, lead)
     if F is None:
         return None
-    x = pd.to_numeric(cov.loc[data.site_ids, column], errors="coerce").to_numpy(float)
-    if not np.isfinite(x).all():
+    columns = list(columns)
+    X = cov.loc[data.site_ids, columns].apply(pd.to_numeric, errors="coerce").to_numpy(float)
+    ok = np.isfinite(X).all(axis=0)
+    kept = [c for c, k in zip(columns, ok) if k]
+    return pd.DataFrame(residualise(X[:, ok], F), index=list(data.site_ids), columns=kept)
+
+
+def column_beyond_lead(
+    residuals: pd.DataFrame, cov: pd.DataFrame, column: str, lead, options: DiagnosisOptions
+) -> pd.Series | None:
+    """The part of the numeric column ``column`` of ``cov`` beyond the prediction model's terms over the between-site
+    sites (:func:`parts_beyond_lead`): what a texture column named between sites adds, the column its extension is
+    fitted on (the residual has lost the rest; :func:`texture_beyond_lead`). None without between-site residuals, a
+    lead basis or a value at every such site."""
+    data = level_data(residuals, options).get("between-site")
+    if data is None or column not in cov.columns:
         return None
-    return pd.Series(residualise(x[:, None], F)[:, 0], index=list(data.site_ids))
+    Z = parts_beyond_lead(data, cov, [column], lead)
+    return None if Z is None or column not in Z.columns else Z[column]
 
 
 def texture_beyond_lead(ctx: LevelContext, cands: CandidateSet, lead) -> None:
@@ -167,10 +177,7 @@ def beyond_lead_clusters(data: LevelData, cands: CandidateSet, lead, rho: float)
     tex = [c for c in cands.covariates.columns if cands.info[c] == ("texture", "numeric")]
     if data.level != "between-site" or not tex or not set(data.site_ids) <= set(cands.covariates.index):
         return None  # (a site without a row: level_context names it)
-    F = lead_basis(data, cands.covariates, lead)
-    if F is None:
+    Z = parts_beyond_lead(data, cands.covariates, tex, lead)
+    if Z is None:
         return None
-    X = cands.covariates.loc[data.site_ids, tex].apply(pd.to_numeric, errors="coerce").to_numpy(float)
-    ok = np.isfinite(X).all(axis=0)
-    Z = pd.DataFrame(residualise(X[:, ok], F), columns=[c for c, k in zip(tex, ok) if k])
-    return texture_clusters(Z, {c: cands.info[c] for c in Z.columns}, rho) + [[c] for c, k in zip(tex, ok) if not k]
+    return texture_clusters(Z, {c: cands.info[c] for c in Z.columns}, rho) + [[c] for c in tex if c not in Z.columns]
