@@ -1263,3 +1263,55 @@ def test_a_spectral_null_names_neither_section_nor_a_column_for_the_texture_mode
     assert not traffic.significant and traffic.label == MISFIT_CORRELATE
     top = cr.named_cause(causes)
     assert top is None or top.source in ("texture", "texture_model"), (top.variable, top.level, top.kind)
+
+
+def test_rule_7_keeps_a_column_the_measured_curves_do_not_show_beyond_the_texture_model_from_the_name():
+    """Rule 7 (`section_naming.columns_beyond_texture`): a significant section-level sites.csv column between sites
+    whose exact test on the measured curves net of the quadratic texture model has p above fdr is not named (label
+    NOT_BEYOND_TEXTURE, not significant, rule "7"), and the next significant cause is; with that p at or below fdr,
+    without it (NaN), within sites, for a column that varies within sections or for section identity, the cause
+    stays as it is."""
+    from skidsim.criticism.causes import NOT_BEYOND_TEXTURE
+    from skidsim.criticism.ranking import rank_causes
+    from skidsim.criticism.section_naming import columns_beyond_texture
+
+    tm = replace(
+        _cause("texture_model[curved in x]", 0.0, section_level=False, source="texture_model"), p_adjusted=0.02
+    )
+    aadt = replace(_cause("aadt", 0.6, cv=0.9), beyond_texture_p=0.3, p_adjusted=0.005)
+    top = cr.named_cause(rank_causes([aadt, tm], pd.DataFrame(), None, fdr=0.04))
+    assert top.variable == tm.variable
+    (out,) = columns_beyond_texture([aadt], 0.04)
+    assert not out.significant and out.label == NOT_BEYOND_TEXTURE and out.explanation_rule == "7"
+    assert out.category == "sites.csv column"
+    kept = [
+        replace(aadt, beyond_texture_p=0.04),
+        replace(aadt, beyond_texture_p=float("nan")),
+        replace(aadt, level="within-site"),
+        replace(aadt, section_level=False),
+        replace(_cause("section", 1.0, section_id=True), beyond_texture_p=0.3),
+    ]
+    for c in kept:
+        assert columns_beyond_texture([c], 0.04) == [c]
+    top = cr.named_cause(rank_causes([replace(aadt, beyond_texture_p=0.01), tm], pd.DataFrame(), None))
+    assert top.variable == "aadt"
+
+
+def test_rule_7_on_a_rado_null_where_a_section_level_column_follows_the_texture_models_misfit():
+    """Rate campaign spectral / none / seed 174 (a texture design of its own; friction from the texture alone, Rado's
+    law): `cum_traffic_msa`, without effect, is significant between sites on the residual (p_adjusted <= 0.04) and
+    was named; the measured curves net of the quadratic texture model do not show it (its exact test over the
+    sections p > 0.04; measured 2026-12-05), so rule 7 keeps it from the name and the texture model's member is
+    named."""
+    import diagnosis_rate_campaigns as rc
+
+    from skidsim.criticism.causes import NOT_BEYOND_TEXTURE
+
+    seed = 174
+    t, _ = rc.make_rate_campaign("spectral", "none", seed, texture=rc.generator_texture("spectral", seed))
+    causes = _rate_screen(t, seed)
+    top = cr.named_cause(causes)
+    assert top is not None and top.source == "texture_model", top
+    col = next(c for c in causes if c.variable == "cum_traffic_msa" and c.level == "between-site" and c.kind == "main")
+    assert col.label == NOT_BEYOND_TEXTURE and not col.significant and col.p_adjusted <= 0.04
+    assert col.beyond_texture_p > 0.04

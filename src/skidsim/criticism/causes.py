@@ -36,6 +36,14 @@ MISFIT_CORRELATE = (
 )
 
 
+#: Label of a section-level sites.csv column significant between sites whose effect the measured curves do not show
+#: beyond the quadratic texture model (rule 7, :func:`skidsim.criticism.section_naming.columns_beyond_texture`).
+NOT_BEYOND_TEXTURE = (
+    "a section-level column whose effect the measured curves do not show beyond the texture model "
+    "(it follows the texture model's misfit)"
+)
+
+
 #: How ``Cause.explains`` of a column named for a section effect begins (:func:`section_effect_label`).
 SECTION_EFFECT_PREFIX = "section ("
 

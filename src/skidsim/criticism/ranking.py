@@ -10,7 +10,7 @@ import pandas as pd
 from .causes import Cause
 from .options import DiagnosisOptions
 from .refinement import _descriptions_at_their_groupings, order_by_refinement, refinement_descriptions
-from .section_naming import beyond_texture_explanations, section_explanations, section_rule
+from .section_naming import beyond_texture_explanations, columns_beyond_texture, section_explanations, section_rule
 
 
 def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
@@ -70,6 +70,7 @@ def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr
         fdr = DiagnosisOptions().fdr
     causes = section_explanations(causes, fdr)
     causes = beyond_texture_explanations(causes, fdr)
+    causes = columns_beyond_texture(causes, fdr)
     causes = refinement_descriptions(causes, cov, fdr)
     causes = sorted(causes, key=lambda c: _rank_key(c, mpd_col))
     _descriptions_at_their_groupings(causes)

@@ -14,6 +14,7 @@ import numpy as np
 from .causes import (
     BEYOND_TEXTURE,
     MISFIT_CORRELATE,
+    NOT_BEYOND_TEXTURE,
     SECTION_UNEXPLAINED,
     TEXTURE_MISFIT,
     TEXTURE_SOURCES,
@@ -365,4 +366,31 @@ def beyond_texture_explanations(causes: list[Cause], fdr: float, share_min: floa
         if (b >= BEYOND_TEXTURE_SHARE_MIN and p <= fdr) or (low and p <= fdr / len({c.variable for c in cols})):
             label = section_effect_label(S.level, K, beyond_texture=True)
             out[_pos(out, best)] = replace(best, significant=True, explains=label)
+    return out
+
+
+def columns_beyond_texture(causes: list[Cause], fdr: float) -> list[Cause]:
+    """Rule 7 of the naming rule of a section effect: a section-level sites.csv column significant between sites (on
+    its own, or by rule 3b) whose effect the measured curves do not show beyond the quadratic texture model
+    (``beyond_texture_p > fdr``, :func:`skidsim.criticism.section_tests.beyond_texture_tests`: the column tested
+    over the sections on the measured curves net of that model) is not named: ``significant`` false, label
+    ``NOT_BEYOND_TEXTURE``, explanation rule "7". Why: between sites the residual is the held-out error of the
+    texture model, whose misfit clusters by section through the per-section textures; a column that acts on friction
+    beyond the texture (traffic, a mix, an aggregate) acts on the measured curves beyond the texture model too, where
+    a column that only follows the texture model's misfit across the 12 sections does not. Applied before the
+    ranking, so the rules of a section effect no longer take such a column as an explanation. No test (NaN: no
+    texture model terms, or the column in the texture model's span) leaves the column as it is."""
+    out = []
+    for c in causes:
+        if (
+            c.significant
+            and c.source == "sites"
+            and c.level == "between-site"
+            and c.section_level
+            and not c.section_id
+            and np.isfinite(c.beyond_texture_p)
+            and c.beyond_texture_p > fdr
+        ):
+            c = replace(c, significant=False, label=NOT_BEYOND_TEXTURE, explanation_rule="7")
+        out.append(c)
     return out
