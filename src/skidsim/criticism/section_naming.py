@@ -378,7 +378,7 @@ def columns_beyond_texture(causes: list[Cause], fdr: float) -> list[Cause]:
     texture model, whose misfit clusters by section through the per-section textures; a column that acts on friction
     beyond the texture (traffic, a mix, an aggregate) acts on the measured curves beyond the texture model too, where
     a column that only follows the texture model's misfit across the 12 sections does not. Applied before the
-    ranking, so the rules of a section effect no longer take such a column as an explanation. No test (NaN: no
+    ranking, so the rules of a section effect do not take such a column as an explanation. No test (NaN: no
     texture model terms, or the column in the texture model's span) leaves the column as it is."""
     out = []
     for c in causes:
