@@ -1241,28 +1241,36 @@ def spectral_design_63():
     return rc.generator_texture("spectral", 63)
 
 
-def test_a_spectral_null_names_neither_section_nor_a_column_for_the_texture_models_misfit(spectral_design_63):
+def test_a_spectral_null_names_neither_section_nor_a_column_for_the_texture_models_misfit(
+    spectral_design_63, monkeypatch
+):
     """Rate campaign spectral / none / seed 63 (a design per seed; Rado's friction): the between-site section x speed
     effect is significant (p_adjusted 0.01) and nothing explains it. Its rest test beyond the quadratic texture
     model gave p 0.0005 with the section sum of squares as the statistic (anti-conservative, see
     `test_the_rest_test_of_section_identity_holds_its_level_where_the_texture_clusters_by_section`), so it was
     named `section (unexplained)`; with the F ratio p > 0.04: the texture model's misfit. cum_traffic_msa x speed,
-    significant on its own (p_adjusted 0.019) with 0.45 of that section effect, goes with it (rule 6), and nothing
-    other than the texture model is named."""
+    significant on its own (p_adjusted 0.019) with 0.45 of that section effect, does not show in the measured curves
+    beyond the texture model (exact p 0.19), so rule 7 keeps it from the name; without rule 7 it goes with the
+    misfit (rule 6). Nothing other than the texture model is named either way."""
     import diagnosis_rate_campaigns as rc
 
-    from skidsim.criticism.causes import MISFIT_CORRELATE, TEXTURE_MISFIT
+    from skidsim.criticism import ranking
+    from skidsim.criticism.causes import MISFIT_CORRELATE, NOT_BEYOND_TEXTURE, TEXTURE_MISFIT
 
     t, _ = rc.make_rate_campaign("spectral", "none", 63, texture=spectral_design_63)
-    causes = _rate_screen(t, 63)
-    sec = next(c for c in causes if c.section_id and c.level == "between-site" and c.kind == "x_speed")
-    assert sec.p_adjusted <= 0.02 and 0.04 < sec.section_rest_p
-    assert not sec.significant and sec.label == TEXTURE_MISFIT
-    traffic = next(c for c in causes if c.variable == "cum_traffic_msa" and c.kind == "x_speed")
-    assert traffic.p_adjusted <= 0.04 and traffic.section_share < 0.5
-    assert not traffic.significant and traffic.label == MISFIT_CORRELATE
-    top = cr.named_cause(causes)
-    assert top is None or top.source in ("texture", "texture_model"), (top.variable, top.level, top.kind)
+    for rule_7 in (True, False):
+        if not rule_7:
+            monkeypatch.setattr(ranking, "columns_beyond_texture", lambda causes, fdr: causes)
+        causes = _rate_screen(t, 63)
+        sec = next(c for c in causes if c.section_id and c.level == "between-site" and c.kind == "x_speed")
+        assert sec.p_adjusted <= 0.02 and 0.04 < sec.section_rest_p
+        assert not sec.significant and sec.label == TEXTURE_MISFIT
+        traffic = next(c for c in causes if c.variable == "cum_traffic_msa" and c.kind == "x_speed")
+        assert traffic.p_adjusted <= 0.04 and traffic.section_share < 0.5 and not traffic.significant
+        assert traffic.label == (NOT_BEYOND_TEXTURE if rule_7 else MISFIT_CORRELATE)
+        assert traffic.beyond_texture_p > 0.04
+        top = cr.named_cause(causes)
+        assert top is None or top.source in ("texture", "texture_model"), (top.variable, top.level, top.kind)
 
 
 def test_rule_7_keeps_a_column_the_measured_curves_do_not_show_beyond_the_texture_model_from_the_name():
