@@ -180,3 +180,13 @@ def simulate_centre_m(hf, cfg, slider) -> tuple[float, float]:
     """The slider's plan centre (m) where :func:`skidsim.solver.simulate` starts it: rear edge ``edge_margin_mm``
     after the pavement's x_min, centred in y (for a CalculiX deck of the same placement)."""
     return (hf.extent[0] + cfg.edge_margin_mm * 1e-3 + 0.5 * slider.size_m[0], 0.5 * (hf.extent[2] + hf.extent[3]))
+
+
+@pytest.fixture(scope="session")
+def spectral_design_1():
+    """The texture table of design 1 of the spectral generator (tests/diagnosis_rate_campaigns.py; the design of rate
+    seeds 1, 5, 9 and 13 with 4 designs), for the naming tests of issue 33."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    import diagnosis_rate_campaigns as rc
+
+    return rc.generator_texture("spectral", 1)

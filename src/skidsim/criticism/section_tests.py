@@ -79,8 +79,8 @@ def section_rest_tests(
     residual on the section indicators net of ``[1, F]`` over what is left beyond them), a pivotal statistic: the
     texture of a campaign sits mostly between its sections, so ``F`` takes much of the section space, and the
     section sum of squares rejected a true null at 0.05 in 14 of 80 seeds of such a design where the F ratio does
-    in 4 (``tests/test_criticism_naming.py``). No p (NaN) where the sections and ``F`` leave no residual degree of
-    freedom. In place."""
+    in 4 (``tests/test_criticism_beyond_texture.py``). No p (NaN) where the sections and ``F`` leave no residual
+    degree of freedom. In place."""
     secs, inv = np.unique(ctx.sec, return_inverse=True)
     G = np.zeros((ctx.n, len(secs)))
     G[np.arange(ctx.n), inv] = 1.0
