@@ -104,7 +104,7 @@ def run_one(args: tuple) -> dict:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from diagnosis_rate_campaigns import make_rate_campaign
+    from diagnosis_rate_campaigns import make_rate_campaign, screen_rate_campaign
 
     from skidsim import criticism as cr
     from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
@@ -126,15 +126,7 @@ def run_one(args: tuple) -> dict:
     )
     opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot, **overrides)
     if screen_only:  # the screening of cr.diagnose, without the extension and its gain
-        from skidsim.criticism.adjustment import texture_model_scores
-
-        res = cr.build_residuals(inputs.sites, inputs.measured, inputs.simulated, inputs.predicted)
-        pcs, _ = texture_model_scores(
-            res, inputs.sites, inputs.texture, opts.speed_bin_kmh, cr.DEFAULT_EXCLUDE, lead=inputs.prediction_features
-        )
-        causes = cr.screen_candidates(
-            res, inputs.sites, inputs.texture, opts, texture_pc_scores=pcs, texture_lead=inputs.prediction_features
-        )
+        causes = screen_rate_campaign(t, opts)
         gain, top = {}, cr.named_cause(causes)
     else:
         r = cr.diagnose(inputs, opts)

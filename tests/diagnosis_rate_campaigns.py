@@ -508,6 +508,19 @@ def make_rate_campaign(source: str, kind: str, seed: int, **kw):
     return t, truth
 
 
+def screen_rate_campaign(t: dict, options):
+    """The screening of ``skidsim.criticism.diagnose`` on the tables ``t`` of :func:`make_rate_campaign`, without
+    the extension and its gain: residuals, the texture model's scores with the prediction features as lead, then
+    ``screen_candidates`` under the :class:`~skidsim.criticism.DiagnosisOptions` ``options``. Returns the causes."""
+    from skidsim import criticism as cr
+    from skidsim.criticism.adjustment import texture_model_scores
+
+    res = cr.build_residuals(t["sites"], t["measured"], t["simulated"], t["predicted"])
+    lead = t["prediction_features"]
+    pcs, _ = texture_model_scores(res, t["sites"], t["texture"], options.speed_bin_kmh, cr.DEFAULT_EXCLUDE, lead=lead)
+    return cr.screen_candidates(res, t["sites"], t["texture"], options, texture_pc_scores=pcs, texture_lead=lead)
+
+
 def describe_kinds() -> str:
     """The kinds and their sizes, as JSON (for the benchmark's output)."""
     return json.dumps(

@@ -21,6 +21,7 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).parent))
 import diagnosis_campaigns as dc
+from diagnosis_rate_campaigns import screen_rate_campaign
 
 from skidsim import criticism as cr
 from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
@@ -117,15 +118,10 @@ def cause(variable, share, *, sig=True, kind="main", section_level=True, section
 
 
 def rate_screen(t, seed, **options):
-    """The screening of a rate campaign's tables as the diagnosis runs it (prediction features as lead;
-    ``options``: DiagnosisOptions fields other than the seed, e.g. ``fdr``)."""
-    from skidsim.criticism.adjustment import texture_model_scores
-
-    opts = DiagnosisOptions(seed=seed, **options)
-    res = cr.build_residuals(t["sites"], t["measured"], t["simulated"], t["predicted"])
-    lead = t["prediction_features"]
-    pcs, _ = texture_model_scores(res, t["sites"], t["texture"], opts.speed_bin_kmh, cr.DEFAULT_EXCLUDE, lead=lead)
-    return cr.screen_candidates(res, t["sites"], t["texture"], opts, texture_pc_scores=pcs, texture_lead=lead)
+    """The screening of a rate campaign's tables as the diagnosis runs it
+    (``diagnosis_rate_campaigns.screen_rate_campaign``; ``options``: DiagnosisOptions fields other than the seed,
+    e.g. ``fdr``)."""
+    return screen_rate_campaign(t, DiagnosisOptions(seed=seed, **options))
 
 
 def section_column_level(seed: int, effect: str, texture: str | None = None):
