@@ -69,7 +69,7 @@ from skidsim.texture import (
 from skidsim.texture.features import ten_point_height
 from skidsim.texture.height import height_parameters
 from skidsim.texture.hybrid import sdr
-from skidsim.texture.material_ratio import material_ratio_parameters
+from skidsim.texture.material_ratio import core_height
 from skidsim.texture.mpd import mean_profile_depth
 from skidsim.texture.spatial import spatial_parameters
 
@@ -284,7 +284,7 @@ def ours_subset(s: Surface, workers: int) -> dict:
     z = s.heights - s.heights.mean()
     hp = height_parameters(z)
     sp = spatial_parameters(z, s.dx, s.dy, workers=workers)
-    mr = material_ratio_parameters(z)
+    sk = core_height(z)  # Sk alone, as surfalize's Sk: not the volumes and ratios of material_ratio_parameters
     fp = ten_point_height(z, s.dx, s.dy, exclude_edge=True)  # surfalize's convention: edge motifs dropped
     return {
         "Sa": hp["Sa"],
@@ -292,7 +292,7 @@ def ours_subset(s: Surface, workers: int) -> dict:
         "Sdr": sdr(z, s.dx, s.dy),
         "Sal": sp.Sal,
         "Str": sp.Str,
-        "Sk": mr["Sk"],
+        "Sk": sk,
         "S10z": fp["S10z"],
     }
 

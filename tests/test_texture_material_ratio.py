@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from skidsim.texture.material_ratio import MaterialRatio, material_ratio_parameters
+from skidsim.texture.material_ratio import MaterialRatio, core_height, material_ratio_parameters
 
 SIGMA = 0.3  # mm
 
@@ -122,3 +122,13 @@ def test_selected_order_statistics_are_the_sorted_heights(name):
     assert mrc.smr(c) == 100.0 * np.count_nonzero(z >= c) / z.size
     assert mrc.volume_above(c) == pytest.approx(math.fsum(np.maximum(z - c, 0).ravel().tolist()) / z.size, rel=1e-13)
     assert mrc.volume_below(c) == pytest.approx(math.fsum(np.maximum(c - z, 0).ravel().tolist()) / z.size, rel=1e-13)
+
+
+@pytest.mark.parametrize("name", list(_select_fields()))
+def test_sk_alone_is_the_sk_of_the_whole_group(name):
+    """``core_height`` (Sk without the volumes and ratios) gives the bits of ``material_ratio_parameters``' Sk on
+    height codes with and without tilt, flat binder, spikes and continuous heights, and the analytic Sk of the
+    normal distribution."""
+    z = _select_fields()[name]
+    assert core_height(z) == material_ratio_parameters(z)["Sk"]
+    assert core_height(normal_heights()) == pytest.approx(analytic()["Sk"], rel=0.01)

@@ -132,6 +132,20 @@ class MaterialRatio:
         return float(slope), float(intercept)
 
 
+def _core_limits(mrc: MaterialRatio) -> tuple[float, float]:
+    """Heights (mm) of the equivalent straight line at 0 % and at 100 % material ratio (Sk's upper and lower
+    limits)."""
+    slope, intercept = mrc.equivalence_line()
+    return intercept, intercept + slope * 100.0
+
+
+def core_height(z: np.ndarray | None = None, *, curve: MaterialRatio | None = None, n_classes: int = 10001) -> float:
+    """Sk (mm) alone: the equivalence line of the material ratio curve, without the volumes and material ratios
+    of :func:`material_ratio_parameters` (the same bits as its ``Sk``)."""
+    upper, lower = _core_limits(curve if curve is not None else MaterialRatio(z, n_classes))
+    return upper - lower
+
+
 def material_ratio_parameters(
     z: np.ndarray | None = None,
     *,
@@ -148,9 +162,7 @@ def material_ratio_parameters(
     cp, cq = mrc.smc([p_pct, q_pct])
     vm_p, vm_q = mrc.volume_above(cp), mrc.volume_above(cq)
     vv_p, vv_q = mrc.volume_below(cp), mrc.volume_below(cq)
-    slope, intercept = mrc.equivalence_line()
-    upper = intercept
-    lower = intercept + slope * 100.0
+    upper, lower = _core_limits(mrc)
     smr1 = mrc.smr(upper)
     smr2 = mrc.smr(lower)
     sa1 = mrc.volume_above(upper)
