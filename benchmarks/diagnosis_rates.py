@@ -115,20 +115,20 @@ def run_one(args: tuple) -> dict:
     if beyond is not None and kind != "none":  # rescale: the part beyond the texture model's terms has sd `beyond`
         size = beyond / truth["effect_sd_beyond_texture_model_mu"]
         t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, size=size, n_designs=n_designs)
-    inputs = DiagnosisInputs(
-        t["sites"],
-        t["measured"],
-        t["simulated"],
-        t["predicted"],
-        t["texture"],
-        prediction_model="physics2-like",
-        prediction_features=t["prediction_features"],
-    )
     opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot, **overrides)
     if screen_only:  # the screening of cr.diagnose, without the extension and its gain
         causes = screen_rate_campaign(t, opts)
         gain, top = {}, cr.named_cause(causes)
     else:
+        inputs = DiagnosisInputs(
+            t["sites"],
+            t["measured"],
+            t["simulated"],
+            t["predicted"],
+            t["texture"],
+            prediction_model="physics2-like",
+            prediction_features=t["prediction_features"],
+        )
         r = cr.diagnose(inputs, opts)
         causes, gain, top = r.causes, r.gain, r.named
     sig = [c for c in causes if c.significant]

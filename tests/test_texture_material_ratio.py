@@ -60,6 +60,7 @@ def test_normal_heights_against_analytic():
     got = material_ratio_parameters(normal_heights())
     for k, v in analytic().items():
         assert got[k] == pytest.approx(v, rel=0.01), k
+    assert core_height(normal_heights()) == pytest.approx(analytic()["Sk"], rel=0.01)  # Sk alone
 
 
 def test_exact_volumes_on_small_set():
@@ -127,8 +128,7 @@ def test_selected_order_statistics_are_the_sorted_heights(name):
 @pytest.mark.parametrize("name", list(_select_fields()))
 def test_sk_alone_is_the_sk_of_the_whole_group(name):
     """``core_height`` (Sk without the volumes and ratios) gives the bits of ``material_ratio_parameters``' Sk on
-    height codes with and without tilt, flat binder, spikes and continuous heights, and the analytic Sk of the
-    normal distribution."""
+    height codes with and without tilt, flat binder, spikes and continuous heights (the analytic Sk of the normal
+    distribution: :func:`test_normal_heights_against_analytic`)."""
     z = _select_fields()[name]
     assert core_height(z) == material_ratio_parameters(z)["Sk"]
-    assert core_height(normal_heights()) == pytest.approx(analytic()["Sk"], rel=0.01)
