@@ -26,7 +26,12 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
   (within sites too); ``section_unexplained``: the named cause is section identity labelled ``section
   (unexplained)``;
 * ``gain_established``: where named, the gain interval at held-out sites excludes 0 (``gain.json``'s
-  held_out_sites scope; a within-site cause's scope is held-out speeds, recorded in ``gain_scope``).
+  held_out_sites scope; a within-site cause's scope is held-out speeds, recorded in ``gain_scope``);
+* the physical extension (whole diagnosis only, :func:`physical_record`): the chosen ``extension``, the RMSE gains
+  of the physical one and of the generic term in the cause's scope, and for TemperatureShift its ``t_ref_c`` (deg C,
+  all sites) and whether gain.json calls it identified and pinned within 5 deg C, and the verdict of
+  ``curve_shape`` on the measured curves (issue 33, item 3; the rate campaigns' WLF truth is t_ref 20 deg C, C1
+  8.86, C2 101.6 K).
 
 Prints a markdown table (per generator x kind: the median effect size, sd over sites of the effect's mean over
 20-70 km/h in mu, n seeds, named-top share, false naming share for none, gain
@@ -99,6 +104,46 @@ def label(c) -> str:
     return f"{name} ({c.level}, {c.kind})"
 
 
+def physical_record(gain: dict) -> dict:
+    """What a whole diagnosis's gain.json says of the physical extension (issue 33, item 3): the extension chosen,
+    the RMSE gains in the cause's own scope of TemperatureShift / DrainageIFI (``physical_gain``) and of the generic
+    term (``generic_gain``; mu, NaN where not evaluated), and TemperatureShift's reference temperature fitted on all
+    sites (``t_ref_c``, deg C), whether it is identified and pinned within 5 deg C (``identifiability``) and
+    whether the measured curves are exponential decays of speed (``curve_shape``), or DrainageIFI's kappa. Empty
+    values where the named cause has no physical extension or nothing is named."""
+    out = {
+        "extension": gain.get("extension", ""),
+        "physical_gain": float("nan"),
+        "generic_gain": float("nan"),
+        "t_ref_c": float("nan"),
+        "t_ref_identifiable": None,
+        "t_ref_pinned": None,
+        "kappa": float("nan"),
+        "curves_exponential": None,
+        "stretch_exponent": float("nan"),
+    }
+    scope = gain.get("scope")
+    entries = [(gain.get("extension"), gain.get("scopes") or {})]
+    entries += [(a["extension"], a["scopes"]) for a in gain.get("alternatives") or []]
+    for name, scopes in entries:
+        own = (scopes or {}).get(scope) or {}
+        key = "physical_gain" if name in ("TemperatureShift", "DrainageIFI") else "generic_gain"
+        if "rmse_gain" in own:
+            out[key] = float(own["rmse_gain"])
+    ident = gain.get("identifiability") or {}
+    if ident.get("parameter") == "t_ref_c":
+        out["t_ref_c"] = float(ident["t_ref_c_all_sites"])
+        out["t_ref_identifiable"] = bool(ident["identifiable"])
+        out["t_ref_pinned"] = bool(ident.get("t_ref_c_pinned"))
+        shape = ident.get("curve_shape")
+        if shape is not None:
+            out["curves_exponential"] = bool(shape["exponential"])
+            out["stretch_exponent"] = float(shape["stretch_exponent"])
+    elif "kappa_all_sites" in ident:
+        out["kappa"] = float(ident["kappa_all_sites"])
+    return out
+
+
 def run_one(args: tuple) -> dict:
     """One campaign: generate, diagnose, score."""
     import os
@@ -165,6 +210,7 @@ def run_one(args: tuple) -> dict:
         "gain_established": gain_sites,
         "gain_established_own_scope": bool(own.get("gain_excludes_zero")) if (top is not None and gain) else None,
         "gain_sites_ci_low": (sites_scope.get("rmse_gain_ci") or [float("nan")])[0] if top is not None else None,
+        **(physical_record(gain) if (top is not None and gain) else {}),
         "n_permutations": causes[0].n_permutations if causes else 0,
         "wall_s": time.perf_counter() - t0,
     }

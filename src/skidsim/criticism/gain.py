@@ -295,7 +295,9 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own
         se = _jackknife_se(t)
         temps = site_values(cov, ext.column, between.sites)
         temps = temps[np.isfinite(temps)]
-        precision = t_ref_precision(se, (float(temps.min()), float(temps.max())) if temps.size else None)
+        precision = t_ref_precision(
+            se, (float(temps.min()), float(temps.max())) if temps.size else None, whole.get("curve_shape")
+        )
         return {
             "extension": "TemperatureShift",
             "parameter": "t_ref_c",
@@ -311,6 +313,7 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own
             **precision,
             "decay_slope": whole.get("decay_slope"),
             "routes": {r: int(sum(f.get("route") == r for f in folds)) for r in ("curves", "prediction")},
+            "curve_shape": whole.get("curve_shape"),
         }
     return None
 
@@ -401,13 +404,22 @@ def drainage_identifiability(
 T_REF_PINNED_C = 5.0
 
 
-def t_ref_precision(se_c: float, temperature_range_c: tuple[float, float] | None) -> dict:
+def t_ref_precision(se_c: float, temperature_range_c: tuple[float, float] | None, shape: dict | None = None) -> dict:
     """How precisely the sections pin the WLF reference temperature: ``t_ref_c_pinned`` is whether the 95 %
     jackknife half-width ``1.96 se_c`` (deg C) is at most :data:`T_REF_PINNED_C`; ``t_ref_c_precision`` says it in
     words, with the sites' temperature range (deg C, min and max; None if unknown). The WLF sensitivity
     ``d log10 a_T/dT = -C1 C2/(C2 + T - T_r)^2`` is all that T_r sets, and over a narrow range of temperatures it
     changes too little for the sites' scatter to pin it: T_r then moves the shift's size, not whether there is
-    one (the permutation test of ``identifiable``), so a shift can be identified while its T_r is not pinned."""
+    one (the permutation test of ``identifiable``), so a shift can be identified while its T_r is not pinned.
+    ``shape``: :func:`skidsim.criticism.wlf.curve_shape` of the measured curves; where they are not exponential
+    decays of speed, T_r is biased whatever its precision: never pinned, and the sentence says why."""
+    out = _t_ref_precision(se_c, temperature_range_c)
+    if shape is not None and not shape["exponential"]:
+        out = {"t_ref_c_pinned": False, "t_ref_c_precision": f"{out['t_ref_c_precision']}; {shape['why']}"}
+    return out
+
+
+def _t_ref_precision(se_c: float, temperature_range_c: tuple[float, float] | None) -> dict:
     half = 1.96 * float(se_c)
     span = (
         ""
