@@ -133,6 +133,35 @@ def test_a_t_ref_read_from_curves_that_are_not_exponential_is_never_pinned():
     assert t_ref_precision(1.0, (18.0, 22.0), {"exponential": True, "why": None}) == t_ref_precision(1.0, (18.0, 22.0))
 
 
+def test_a_within_site_functional_form_says_whether_the_measured_curves_are_exponential():
+    """gain.json ``curve_form`` of a within-site functional form (SharedShape): on the harness's exponential curves
+    the reading says the law can follow them (the shared shape is the simulated curve's), in report.md too; on
+    Rado's curves the reading names the law's form, with the stretched exponent. A between-site functional form and
+    other extensions get none."""
+    from skidsim.criticism.extensions import ExtendedModel, SharedShape
+    from skidsim.criticism.report import report_markdown
+    from skidsim.criticism.wlf import curve_form_reading, curve_shape
+
+    tables = campaign(6, None)
+    res = cr.build_residuals(tables["sites"], tables["measured"], tables["simulated"], tables["predicted"])
+    ff = Cause("functional_form", "within-site", "functional_form", 0.01, 0.1, 0.01, 0.01, True, source="residual")
+    opts = DiagnosisOptions(n_boot=50)
+    gain, _ = cr.evaluate_extension(ExtendedModel(ff, SharedShape()), res, tables["sites"], tables["texture"], opts)
+    form = gain["curve_form"]
+    assert form["curve_shape"]["exponential"] and form["reading"].startswith("the measured curves are exponential")
+    assert "the simulated curve's" in form["reading"]
+    report = report_markdown([{**ff.as_dict(), "rank": 1}], gain, None, ".")
+    assert f"Form of the measured curves: {form['reading']}." in report
+    between = Cause("functional_form", "between-site", "functional_form", 0.01, 0.1, 0.01, 0.01, True)
+    gain_b, _ = cr.evaluate_extension(
+        ExtendedModel(between, SharedShape()), res, tables["sites"], tables["texture"], opts
+    )
+    assert "curve_form" not in gain_b
+    rado = curve_form_reading(curve_shape(*_curves("rado", 1, 0.007)))
+    assert rado.startswith("the measured curves are not exponential decays of speed")
+    assert "the exponential-decay law's form" in rado
+
+
 def test_temperature_shift_says_why_it_is_not_identified():
     """A temperature column without any effect on a campaign whose friction only depends on the texture: the WLF
     reference temperature is not identified, and gain.json says why. (The permutation test holds its 5 % level:

@@ -12,7 +12,7 @@ import pandas as pd
 from ..errors import InputError
 from .covariates import DEFAULT_EXCLUDE, score_table, site_covariates, texture_scores
 from .crossval import folds, is_section_nested
-from .extensions import CovariateTerm, DrainageIFI, ExtendedModel, TemperatureShift
+from .extensions import CovariateTerm, DrainageIFI, ExtendedModel, SharedShape, TemperatureShift
 from .options import DiagnosisOptions
 from .recalibration import (
     _train_sse,
@@ -23,7 +23,7 @@ from .recalibration import (
 )
 from .residuals import LEVELS, require_columns
 from .scopes import Scope, centred_speed, make_scope, site_target, site_values
-from .wlf import temperature_identifiability
+from .wlf import curve_form_reading, curve_shape, site_curves, temperature_identifiability
 
 _DEFAULTS = DiagnosisOptions()
 #: The summary keys of gain.json's ``over_texture_refit`` and ``over_shared_level`` comparisons.
@@ -260,7 +260,24 @@ def evaluate_extension(
     ident = physical_identifiability(results, level_scopes, cov, own)
     if ident is not None:
         gain["identifiability"] = ident
+    if isinstance(model.extension, SharedShape) and model.cause.level == "within-site":
+        form = measured_curve_form(level_scopes)
+        if form is not None:
+            gain["curve_form"] = form
     return gain, best[2]
+
+
+def measured_curve_form(level_scopes: dict) -> dict | None:
+    """gain.json ``curve_form`` of a within-site functional form: :func:`~skidsim.criticism.wlf.curve_shape` of the
+    sites' measured curves (every measured row of the between-site scope, else the within-site scope's held-out
+    speeds) and what it says of the shared shape (:func:`~skidsim.criticism.wlf.curve_form_reading`); None
+    without curves of at least 4 speeds."""
+    scope = level_scopes.get("between-site") or level_scopes.get("within-site")
+    curves = site_curves(scope) if scope is not None else None
+    shape = curve_shape(*curves) if curves is not None else None
+    if shape is None:
+        return None
+    return {"curve_shape": shape, "reading": curve_form_reading(shape)}
 
 
 def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own: str | None = None) -> dict | None:

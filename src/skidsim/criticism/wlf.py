@@ -221,6 +221,26 @@ def curve_shape(V: np.ndarray, Y: np.ndarray, level: float = SHAPE_LEVEL) -> dic
     }
 
 
+def curve_form_reading(shape: dict) -> str:
+    """What :func:`curve_shape`'s verdict says of a shape misfit shared by the sites at held-out speeds (the named
+    within-site functional form): where the measured curves are exponential decays of speed, the calibrated law
+    can follow them and the misfit is the simulated curve's (the FE's response to the law, or the law fitted at
+    the calibration speeds); where they are not, the misfit is the exponential-decay law's form."""
+    test = f"F {shape['f_ratio']:.1f}, p {shape['p_value']:.2g}"
+    if shape["exponential"]:
+        return (
+            f"the measured curves are exponential decays of speed ({test} for a stretched exponential): the "
+            "exponential-decay law can follow them, so the shape shared at held-out speeds is the simulated "
+            "curve's (the FE's response to the law, or the law fitted at the calibration speeds), not the law's form"
+        )
+    return (
+        f"the measured curves are not exponential decays of speed (a stretched exponential "
+        f"exp(-(alpha s)^{shape['stretch_exponent']:g}) fits them better: {test}; RMSE "
+        f"{shape['rmse_exponential']:.4f} -> {shape['rmse_stretched']:.4f}): the shape shared at held-out speeds "
+        "is the exponential-decay law's form, which cannot follow them"
+    )
+
+
 def log10_decay_column(ext: TemperatureShift, cov: pd.DataFrame, sites: list) -> np.ndarray | None:
     """log10 of ``ext.decay_column`` (mm) per site of ``sites``; None without a decay column or where it is
     missing, not finite or not positive at a site."""
