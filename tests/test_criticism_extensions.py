@@ -136,8 +136,8 @@ def test_a_t_ref_read_from_curves_that_are_not_exponential_is_never_pinned():
 def test_a_within_site_functional_form_says_whether_the_measured_curves_are_exponential():
     """gain.json ``curve_form`` of a within-site functional form (SharedShape): on the harness's exponential curves
     the reading says the law can follow them (the shared shape is the simulated curve's), in report.md too; on
-    Rado's curves the reading names the law's form, with the stretched exponent. A between-site functional form and
-    other extensions get none."""
+    Rado's curves the reading names the law's form, with the stretched exponent. A between-site functional form gets
+    none."""
     from skidsim.criticism.extensions import ExtendedModel, SharedShape
     from skidsim.criticism.report import report_markdown
     from skidsim.criticism.wlf import curve_form_reading, curve_shape
