@@ -123,13 +123,10 @@ def physical_record(gain: dict) -> dict:
         "stretch_exponent": float("nan"),
     }
     scope = gain.get("scope")
-    entries = [(gain.get("extension"), gain.get("scopes") or {})]
-    entries += [(a["extension"], a["scopes"]) for a in gain.get("alternatives") or []]
-    for name, scopes in entries:
+    for scopes in [gain.get("scopes")] + [a["scopes"] for a in gain.get("alternatives") or []]:
         own = (scopes or {}).get(scope) or {}
-        key = "physical_gain" if name in ("TemperatureShift", "DrainageIFI") else "generic_gain"
-        if "rmse_gain" in own:
-            out[key] = float(own["rmse_gain"])
+        if "rmse_gain" in own:  # the extension's own record (gain._ext_describe) says whether it is physical
+            out["physical_gain" if own["extension"]["physical"] else "generic_gain"] = float(own["rmse_gain"])
     ident = gain.get("identifiability") or {}
     if ident.get("parameter") == "t_ref_c":
         out["t_ref_c"] = float(ident["t_ref_c_all_sites"])
