@@ -20,7 +20,9 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
   are empty. The plain ``chips`` / ``spectral`` sources hide one effect per campaign (no section factors);
 * ``false_category``: the named cause's ``category`` (:attr:`skidsim.criticism.Cause.category`) is not ``texture
   model`` (a texture parameter between sites is reported as the texture model's misfit in that measure, the MPD
-  column x speed between sites as the IFI speed constant it misses); ``false_named``: the named cause is not a
+  column x speed between sites as the IFI speed constant it misses); ``false_model``: nor ``friction law`` (the
+  within-site functional form where the measured curves are not exponential decays: the exponential-decay law's
+  form, a cause in the model as the texture model is); ``false_named``: the named cause is not a
   texture-model candidate (``texture_model[...]``); ``false_any``: some significant cause other than a texture-model
   candidate (any rank); ``false_nontexture``: the named cause is neither the texture model nor a texture parameter
   (within sites too); ``section_unexplained``: the named cause is section identity labelled ``section
@@ -68,6 +70,11 @@ def seed_range(text: str) -> list[int]:
         a, _, b = part.partition("-")
         out += list(range(int(a), int(b or a) + 1))
     return out
+
+
+#: Categories of a cause in the model itself (:attr:`skidsim.criticism.Cause.category`): the texture model, and the
+#: exponential-decay law's form where the measured curves are not exponential decays (``false_model``).
+MODEL_CATEGORIES = ("texture model", "friction law")
 
 
 def is_texture_model(c) -> bool:
@@ -196,6 +203,7 @@ def run_one(args: tuple) -> dict:
         "named_top": hit(top, truth) if (kind != "none" or latent) else None,
         "named_category": top.category if top is not None else "",
         "false_category": top is not None and top.category != "texture model" if not latent else None,
+        "false_model": top is not None and top.category not in MODEL_CATEGORIES if not latent else None,
         "false_named": top is not None and not is_texture_model(top) if not latent else None,
         "false_any": any(not is_texture_model(c) for c in sig) if not latent else None,
         "false_nontexture": top is not None and not is_texture(top) if not latent else None,
@@ -261,6 +269,9 @@ def table(df: pd.DataFrame) -> str:
             tm = int(d["texture_model_named"].sum())
             if tm:
                 false += f" (texture model named in {tm})"
+            law = int((d["named_category"] == "friction law").sum())
+            if law:
+                false += f" (the friction law's form named in {law})"
             su = int(d["section_unexplained"].sum())
             if su:
                 false += f" (section (unexplained) in {su})"

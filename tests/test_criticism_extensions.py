@@ -203,3 +203,48 @@ def test_drainage_says_why_its_kappa_is_not_identified(level):
 
     report = report_markdown([{**cause.as_dict(), "rank": 1}], gain, None, ".")
     assert f"Drainage factor kappa of DrainageIFI: not identifiable: {ident['why']}." in report
+
+
+def _rado_measured(res, seed: int, noise_mu: float):
+    """The residual table ``res`` with each site's measured points replaced by a Rado (log-normal in speed) curve
+    at the same speeds (level at 20 km/h 0.4-0.8, MPD 0.4-1.6 mm, peak at 1-4 km/h, Gaussian noise ``noise_mu``);
+    the model column and the residual follow."""
+    from skidsim.generators import friction_models as fm
+
+    rng = np.random.default_rng(seed)
+    out = res.copy()
+    for site in sorted(out["site"].unique()):
+        p = fm.model_parameters("rado", rng.uniform(0.4, 0.8), rng.uniform(0.4, 1.6), v_peak_kmh=rng.uniform(1.0, 4.0))
+        rows = out.index[out["site"] == site]
+        speeds = np.unique(out.loc[rows, "speed_kmh"].to_numpy(float))
+        mu = dict(zip(speeds, fm.evaluate("rado", p, speeds) + rng.normal(0.0, noise_mu, speeds.size)))
+        out.loc[rows, "measured"] = out.loc[rows, "speed_kmh"].map(mu).to_numpy(float)
+    return out.assign(residual=out["measured"] - out["model"])
+
+
+def test_the_within_site_functional_form_on_curves_that_are_not_exponential_is_the_friction_laws_form():
+    """A within-site functional form is the exponential-decay law's form (label ``LAW_FORM``, category ``friction
+    law``) where the measured curves are not exponential decays (Rado's, stretched exponent below 1), and stays a
+    ``functional form`` (the simulated curve's shape) on the harness's exponential curves; the screening labels it
+    so without moving its rank or p-value. A between-site functional form is never relabelled."""
+    from skidsim.criticism.causes import CATEGORIES, LAW_FORM
+    from skidsim.criticism.wlf import label_law_form
+
+    tables = campaign(6, None)
+    res = cr.build_residuals(tables["sites"], tables["measured"], tables["simulated"], tables["predicted"])
+    rado = _rado_measured(res, 3, 0.007)
+    ff = Cause("functional_form", "within-site", "functional_form", 0.01, 0.1, 0.01, 0.01, True, source="residual")
+    between = Cause("functional_form", "between-site", "functional_form", 0.01, 0.1, 0.01, 0.01, True)
+    assert [c.category for c in label_law_form([between, ff], res)] == ["functional form", "functional form"]
+    law = label_law_form([between, ff], rado)
+    assert law[0] is between and law[1].category == "friction law" and "friction law" in CATEGORIES
+    assert law[1].label.startswith(f"{LAW_FORM}: the measured curves are stretched exponentials exp(-(alpha s)^0.")
+    assert (law[1].p_adjusted, law[1].significant) == (ff.p_adjusted, ff.significant)
+    opts = DiagnosisOptions(n_permutations=99)
+    with warnings.catch_warnings():  # 99 permutations: nothing can be significant, the labels are what is tested
+        warnings.simplefilter("ignore", RuntimeWarning)
+        screened = cr.screen_candidates(rado, tables["sites"], tables["texture"], opts)
+        plain = cr.screen_candidates(res, tables["sites"], tables["texture"], opts)
+    (s_ff,) = [c for c in screened if c.variable == "functional_form" and c.level == "within-site"]
+    (p_ff,) = [c for c in plain if c.variable == "functional_form" and c.level == "within-site"]
+    assert s_ff.category == "friction law" and p_ff.category == "functional form" and p_ff.label == ""

@@ -22,7 +22,7 @@ from naming_campaigns import campaign, cause, diagnose, rate_screen, screen
 
 from skidsim import criticism as cr
 from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
-from skidsim.criticism.causes import SECTION_UNEXPLAINED
+from skidsim.criticism.causes import LAW_FORM, SECTION_UNEXPLAINED
 from skidsim.criticism.section_naming import section_rule
 from skidsim.criticism.texture_candidate import section_share
 
@@ -120,6 +120,14 @@ def test_the_category_says_what_kind_of_cause_an_entry_is():
         (
             replace(cause("functional_form", 0.0, section_level=False, source="residual"), kind="functional_form"),
             "functional form",
+        ),
+        (
+            replace(
+                cause("functional_form", 0.0, section_level=False, source="residual"),
+                kind="functional_form",
+                label=f"{LAW_FORM}: the measured curves are stretched exponentials exp(-(alpha s)^0.5)",
+            ),
+            "friction law",
         ),
     ]
     for c, want in cases:

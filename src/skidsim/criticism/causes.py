@@ -36,6 +36,11 @@ MISFIT_CORRELATE = (
 )
 
 
+#: Label prefix of a within-site functional form where the measured curves are not exponential decays of speed
+#: (:func:`skidsim.criticism.wlf.label_law_form`): the shape the sites share is the exponential-decay law's form.
+LAW_FORM = "the exponential-decay law's form"
+
+
 #: Label of a section-level sites.csv column significant between sites whose effect the measured curves do not show
 #: beyond the quadratic texture model (rule 7, :func:`skidsim.criticism.section_naming.columns_beyond_texture`).
 NOT_BEYOND_TEXTURE = (
@@ -71,6 +76,7 @@ CATEGORIES = (
     "temperature",
     "sites.csv column",
     "functional form",
+    "friction law",
 )
 
 
@@ -173,7 +179,10 @@ class Cause:
         within sites; ``section (unexplained)`` and ``section`` for section identity (the latter explained by a
         column); ``temperature`` for a temperature column of sites.csv
         (:func:`skidsim.criticism.covariates.temperature_columns`); ``sites.csv column`` for any other sites.csv
-        column; ``functional form`` for the shape of the friction law."""
+        column; ``friction law`` for a within-site functional form labelled :data:`LAW_FORM` (the measured curves
+        are not exponential decays of speed, so the shape is the exponential-decay law's form: a cause in the model,
+        like the texture model) and ``functional form`` for any other functional form (the simulated curve's
+        shape)."""
         if reads_as_texture_model(self.source, self.level) or self.label == TEXTURE_MISFIT:
             return "texture model"
         if self.section_id:
@@ -181,7 +190,7 @@ class Cause:
         if self.source == "texture":
             return "drainage" if (self.family == "primary" and self.kind == "x_speed") else "texture parameter"
         if self.variable == "functional_form":
-            return "functional form"
+            return "friction law" if self.label.startswith(LAW_FORM) else "functional form"
         if names_temperature(self.variable, self.dtype):
             return "temperature"
         return "sites.csv column"

@@ -23,7 +23,7 @@ from .recalibration import (
 )
 from .residuals import LEVELS, require_columns
 from .scopes import Scope, centred_speed, make_scope, site_target, site_values
-from .wlf import curve_form_reading, curve_shape, site_curves, temperature_identifiability
+from .wlf import curve_form_reading, scope_curve_shape, temperature_identifiability
 
 _DEFAULTS = DiagnosisOptions()
 #: The summary keys of gain.json's ``over_texture_refit`` and ``over_shared_level`` comparisons.
@@ -272,9 +272,7 @@ def measured_curve_form(level_scopes: dict) -> dict | None:
     sites' measured curves (every measured row of the between-site scope, else the within-site scope's held-out
     speeds) and what it says of the shared shape (:func:`~skidsim.criticism.wlf.curve_form_reading`); None
     without curves of at least 4 speeds."""
-    scope = level_scopes.get("between-site") or level_scopes.get("within-site")
-    curves = site_curves(scope) if scope is not None else None
-    shape = curve_shape(*curves) if curves is not None else None
+    shape = scope_curve_shape(level_scopes.get("between-site") or level_scopes.get("within-site"))
     if shape is None:
         return None
     return {"curve_shape": shape, "reading": curve_form_reading(shape)}

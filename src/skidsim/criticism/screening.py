@@ -41,6 +41,7 @@ from .residuals import require_columns, texture_model_shape
 from .section_tests import section_rest_tests, texture_model_basis
 from .texture_candidate import section_share
 from .texture_tests import _members, beyond_lead_clusters, texture_beyond_lead, texture_model_tests, texture_speed_tests
+from .wlf import label_law_form
 
 
 @dataclass
@@ -318,4 +319,5 @@ def screen_candidates(
     causes = make_causes(tests, adjustment, cands, options, P)
     if between is not None:
         causes += texture_speed_tests(*between, causes, cands, options, P)
-    return rank_causes(causes, cands.covariates, cands.mpd, fdr=options.fdr)
+    causes = rank_causes(causes, cands.covariates, cands.mpd, fdr=options.fdr)
+    return label_law_form(causes, residuals)

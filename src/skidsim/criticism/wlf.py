@@ -9,14 +9,17 @@ universal, and profiles T_r. Friction mu (dimensionless), speeds km/h, temperatu
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 from scipy.optimize import minimize, minimize_scalar
 from scipy.stats import f as f_dist
 
 from ..friction import KMH_PER_MS
+from .causes import LAW_FORM
 from .extensions import TemperatureShift, exp_curve, fit_exp_curves
-from .scopes import Scope, site_values
+from .scopes import Scope, make_scope, site_values
 
 #: Grid points of the profile of the WLF reference temperature over its bounds.
 WLF_GRID = 41
@@ -239,6 +242,34 @@ def curve_form_reading(shape: dict) -> str:
         f"{shape['rmse_exponential']:.4f} -> {shape['rmse_stretched']:.4f}): the shape shared at held-out speeds "
         "is the exponential-decay law's form, which cannot follow them"
     )
+
+
+def scope_curve_shape(scope: Scope | None) -> dict | None:
+    """:func:`curve_shape` of the measured curves of a scope (:func:`site_curves`); None without a scope or curves
+    of at least 4 speeds."""
+    curves = site_curves(scope) if scope is not None else None
+    return curve_shape(*curves) if curves is not None else None
+
+
+def label_law_form(causes: list, residuals: pd.DataFrame) -> list:
+    """The within-site functional form labelled :data:`~skidsim.criticism.causes.LAW_FORM` (category ``friction
+    law``) where :func:`curve_shape` of the measured curves (every measured row of the between-site level, else of
+    the within-site level, as gain.json's ``curve_form``) finds them not exponential decays of speed: the shape
+    the sites share at held-out speeds is then the law's form, which the calibrated law cannot follow
+    (:func:`curve_form_reading`). Ranks, p-values and significance stay as they are. In place; returns
+    ``causes``."""
+    k = next((k for k, c in enumerate(causes) if c.variable == "functional_form" and c.level == "within-site"), None)
+    if k is None or "measured" not in residuals.columns:
+        return causes
+    shape = scope_curve_shape(make_scope(residuals, "between-site") or make_scope(residuals, "within-site"))
+    if shape is not None and not shape["exponential"]:
+        causes[k] = replace(
+            causes[k],
+            label=f"{LAW_FORM}: the measured curves are stretched exponentials exp(-(alpha s)^"
+            f"{shape['stretch_exponent']:g}), not exponential decays of speed (F {shape['f_ratio']:.1f}, p "
+            f"{shape['p_value']:.2g})",
+        )
+    return causes
 
 
 def log10_decay_column(ext: TemperatureShift, cov: pd.DataFrame, sites: list) -> np.ndarray | None:
