@@ -35,13 +35,16 @@ functions, with only the seed changed (the tests use seed 7):
 * ``none_chips``, ``none_spectral`` (not in the default list): the campaigns of ``texture_speed`` /
   ``texture_measure`` without a hidden effect (the generator's own friction model of the texture, its random site
   and section factors, the decoy columns). Right: nothing named, a cause of the category ``texture model`` (the
-  generators' PIARC/IFI and Rado laws are not the texture model's form) or ``section (unexplained)`` (the random
-  section factors are a section effect no column carries).
+  generators' PIARC/IFI and Rado laws are not the texture model's form), ``friction law`` (Rado's curves are not
+  the exponential-decay law's form) or ``section (unexplained)`` (the random section factors are a section effect
+  no column carries).
 * ``texture_only_chips``, ``texture_only_spectral`` (not in the default list): the same without the generator's
   random section factors: friction depends on the texture alone (and the random site factors), the issue's null.
   Right: nothing named or a cause of the category ``texture model``, ``texture parameter`` or ``drainage`` (the
-  PIARC/IFI speed constant follows MPD: a texture x speed effect); ``section (unexplained)`` or a sites.csv column
-  is a false naming, and so, strictly, is the within-site functional form.
+  PIARC/IFI speed constant follows MPD: a texture x speed effect) or ``friction law`` (the within-site functional
+  form on measured curves that are not exponential decays, Rado's: the exponential-decay law's form, a cause in
+  the model); ``section (unexplained)`` or a sites.csv column is a false naming, and so is the within-site
+  functional form on exponential curves (category ``functional form``).
 * ``section_column_chips``, ``site_column_chips``, ``temperature_chips``, ``categorical_speed_chips`` and the same
   with ``_spectral`` (not in the default list): the rate campaigns' effects of a sites.csv column
   (tests/diagnosis_rate_campaigns.py: traffic polishing by ``cum_traffic_msa``, the station ``station_ft``, the WLF
@@ -147,9 +150,9 @@ def is_right(kind: str, top: dict | None) -> bool:
     if kind == "none":
         return top is None
     if kind in ("none_chips", "none_spectral"):  # the generator's own friction model of the texture: the texture model
-        return top is None or top.get("category") in ("texture model", "section (unexplained)")
-    if kind in ("texture_only_chips", "texture_only_spectral"):  # no section factors either: a texture cause only
-        return top is None or top.get("category") in ("texture model", "texture parameter", "drainage")
+        return top is None or top.get("category") in ("texture model", "friction law", "section (unexplained)")
+    if kind in ("texture_only_chips", "texture_only_spectral"):  # no section factors either: a cause in the model
+        return top is None or top.get("category") in ("texture model", "friction law", "texture parameter", "drainage")
     if top is None:
         return False
     var, group = str(top["variable"]), list(top.get("group") or [])
