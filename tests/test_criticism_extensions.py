@@ -240,6 +240,11 @@ def test_the_within_site_functional_form_on_curves_that_are_not_exponential_is_t
     assert law[0] is between and law[1].category == "friction law" and "friction law" in CATEGORIES
     assert law[1].label.startswith(f"{LAW_FORM}: the measured curves are stretched exponentials exp(-(alpha s)^0.")
     assert (law[1].p_adjusted, law[1].significant) == (ff.p_adjusted, ff.significant)
+    s = rado["speed_kmh"].to_numpy(float) / 3.6  # compressed curves, exp(-(alpha s)^1.4), alpha 0.05 s/m
+    rng = np.random.default_rng(4)
+    squeezed = rado.assign(measured=0.3 + 0.4 * np.exp(-((0.05 * s) ** 1.4)) + rng.normal(0.0, 0.003, s.size))
+    (_, c) = label_law_form([between, ff], squeezed)
+    assert c.label.startswith(f"{LAW_FORM}: the measured curves are compressed exponentials exp(-(alpha s)^1.")
     opts = DiagnosisOptions(n_permutations=99)
     with warnings.catch_warnings():  # 99 permutations: nothing can be significant, the labels are what is tested
         warnings.simplefilter("ignore", RuntimeWarning)

@@ -216,12 +216,18 @@ def curve_shape(V: np.ndarray, Y: np.ndarray, level: float = SHAPE_LEVEL) -> dic
         "why": None
         if exponential
         else (
-            f"the measured curves are not exponential decays of speed (a stretched exponential "
+            f"the measured curves are not exponential decays of speed (a {stretch_word(best)} exponential "
             f"exp(-(alpha s)^{best:g}) fits them better: F {f_ratio:.1f}, p {p_value:.2g}), so T_r, read from the "
             "decay constants of exponential fits, is biased on them (a curve form of exponent 0.9 or 1.1 moves it "
             "by 12-18 deg C; on log-normal, Rado, curves it comes out tens of deg C low)"
         ),
     }
+
+
+def stretch_word(p: float) -> str:
+    """``stretched`` for an exponent ``p`` of ``exp(-(alpha s)^p)`` below 1 (a slower than exponential decay at
+    high speeds), ``compressed`` above 1."""
+    return "stretched" if p < 1.0 else "compressed"
 
 
 def curve_form_reading(shape: dict) -> str:
@@ -237,8 +243,8 @@ def curve_form_reading(shape: dict) -> str:
             "curve's (the FE's response to the law, or the law fitted at the calibration speeds), not the law's form"
         )
     return (
-        f"the measured curves are not exponential decays of speed (a stretched exponential "
-        f"exp(-(alpha s)^{shape['stretch_exponent']:g}) fits them better: {test}; RMSE "
+        f"the measured curves are not exponential decays of speed (a {stretch_word(shape['stretch_exponent'])} "
+        f"exponential exp(-(alpha s)^{shape['stretch_exponent']:g}) fits them better: {test}; RMSE "
         f"{shape['rmse_exponential']:.4f} -> {shape['rmse_stretched']:.4f}): the shape shared at held-out speeds "
         "is the exponential-decay law's form, which cannot follow them"
     )
@@ -263,11 +269,11 @@ def label_law_form(causes: list, residuals: pd.DataFrame) -> list:
         return causes
     shape = scope_curve_shape(make_scope(residuals, "between-site") or make_scope(residuals, "within-site"))
     if shape is not None and not shape["exponential"]:
+        p = shape["stretch_exponent"]
         causes[k] = replace(
             causes[k],
-            label=f"{LAW_FORM}: the measured curves are stretched exponentials exp(-(alpha s)^"
-            f"{shape['stretch_exponent']:g}), not exponential decays of speed (F {shape['f_ratio']:.1f}, p "
-            f"{shape['p_value']:.2g})",
+            label=f"{LAW_FORM}: the measured curves are {stretch_word(p)} exponentials exp(-(alpha s)^{p:g}), not "
+            f"exponential decays of speed (F {shape['f_ratio']:.1f}, p {shape['p_value']:.2g})",
         )
     return causes
 
