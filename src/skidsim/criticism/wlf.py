@@ -259,11 +259,11 @@ def scope_curve_shape(scope: Scope | None) -> dict | None:
 
 def label_law_form(causes: list, residuals: pd.DataFrame) -> list:
     """The within-site functional form labelled :data:`~skidsim.criticism.causes.LAW_FORM` (category ``friction
-    law``) where :func:`curve_shape` of the measured curves (every measured row of the between-site level, else of
-    the within-site level, as gain.json's ``curve_form``) finds them not exponential decays of speed: the shape
-    the sites share at held-out speeds is then the law's form, which the calibrated law cannot follow
-    (:func:`curve_form_reading`). Ranks, p-values and significance stay as they are. In place; returns
-    ``causes``."""
+    law``) where :func:`curve_shape` of the measured curves (the rows of the between-site scope, else of the
+    within-site scope, :func:`~skidsim.criticism.scopes.make_scope`, as gain.json's ``curve_form``) finds them not
+    exponential decays of speed: the shape the sites share at held-out speeds is then the law's form, which the
+    calibrated law cannot follow (:func:`curve_form_reading`). Ranks, p-values and significance stay as they are.
+    In place; returns ``causes``."""
     k = next((k for k, c in enumerate(causes) if c.variable == "functional_form" and c.level == "within-site"), None)
     if k is None or "measured" not in residuals.columns:
         return causes
