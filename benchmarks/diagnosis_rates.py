@@ -20,13 +20,13 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
   are empty. The plain ``chips`` / ``spectral`` sources hide one effect per campaign (no section factors);
 * ``false_category``: the named cause's ``category`` (:attr:`skidsim.criticism.Cause.category`) is not ``texture
   model`` (a texture parameter between sites is reported as the texture model's misfit in that measure, the MPD
-  column x speed between sites as the IFI speed constant it misses); ``false_model``: nor ``friction law`` (the
-  within-site functional form where the measured curves are not exponential decays: the exponential-decay law's
-  form, a cause in the model as the texture model is); ``false_named``: the named cause is not a
-  texture-model candidate (``texture_model[...]``); ``false_any``: some significant cause other than a texture-model
-  candidate (any rank); ``false_nontexture``: the named cause is neither the texture model nor a texture parameter
-  (within sites too); ``section_unexplained``: the named cause is section identity labelled ``section
-  (unexplained)``;
+  column x speed between sites as the IFI speed constant it misses); ``false_model``: nor ``friction law``
+  (``skidsim.criticism.causes.MODEL_CATEGORIES``; the within-site functional form where the measured curves are
+  not exponential decays: the exponential-decay law's form, a cause in the model as the texture model is);
+  ``false_named``: the named cause is not a texture-model candidate (``texture_model[...]``); ``false_any``: some
+  significant cause other than a texture-model candidate (any rank); ``false_nontexture``: the named cause is
+  neither the texture model nor a texture parameter (within sites too); ``section_unexplained``: the named cause
+  is section identity labelled ``section (unexplained)``;
 * ``gain_established``: where named, the gain interval at held-out sites excludes 0 (``gain.json``'s
   held_out_sites scope; a within-site cause's scope is held-out speeds, recorded in ``gain_scope``);
 * the physical extension (whole diagnosis only, :func:`physical_record`): the chosen ``extension``, the RMSE gains
@@ -70,11 +70,6 @@ def seed_range(text: str) -> list[int]:
         a, _, b = part.partition("-")
         out += list(range(int(a), int(b or a) + 1))
     return out
-
-
-#: Categories of a cause in the model itself (:attr:`skidsim.criticism.Cause.category`): the texture model, and the
-#: exponential-decay law's form where the measured curves are not exponential decays (``false_model``).
-MODEL_CATEGORIES = ("texture model", "friction law")
 
 
 def is_texture_model(c) -> bool:
@@ -157,6 +152,7 @@ def run_one(args: tuple) -> dict:
 
     from skidsim import criticism as cr
     from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
+    from skidsim.criticism.causes import MODEL_CATEGORIES
 
     source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, overrides = args
     t0 = time.perf_counter()

@@ -147,12 +147,14 @@ def run_kind(kind: str, seed: int, workdir: Path) -> dict:
 
 def is_right(kind: str, top: dict | None) -> bool:
     """Whether the named cause ``top`` (None: nothing named) is the hidden one (module docstring)."""
+    from skidsim.criticism.causes import MODEL_CATEGORIES
+
     if kind == "none":
         return top is None
     if kind in ("none_chips", "none_spectral"):  # the generator's own friction model of the texture: the texture model
-        return top is None or top.get("category") in ("texture model", "friction law", "section (unexplained)")
+        return top is None or top.get("category") in (*MODEL_CATEGORIES, "section (unexplained)")
     if kind in ("texture_only_chips", "texture_only_spectral"):  # no section factors either: a cause in the model
-        return top is None or top.get("category") in ("texture model", "friction law", "texture parameter", "drainage")
+        return top is None or top.get("category") in (*MODEL_CATEGORIES, "texture parameter", "drainage")
     if top is None:
         return False
     var, group = str(top["variable"]), list(top.get("group") or [])

@@ -79,6 +79,10 @@ CATEGORIES = (
     "friction law",
 )
 
+#: The categories of :data:`CATEGORIES` that are faults of the model itself, not of a variable of the data: the
+#: texture model, and the exponential-decay law's form where the measured curves are not exponential decays.
+MODEL_CATEGORIES = ("texture model", "friction law")
+
 
 #: Sources of the texture explanations of a section effect (texture parameters, the texture-model candidate).
 TEXTURE_SOURCES = ("texture", "texture_model")
