@@ -23,7 +23,7 @@ from .recalibration import (
 )
 from .residuals import LEVELS, require_columns
 from .scopes import Scope, centred_speed, make_scope, site_target, site_values
-from .wlf import curve_form_reading, scope_curve_shape, temperature_identifiability
+from .wlf import curve_form_reading, measured_curve_shape, temperature_identifiability
 
 _DEFAULTS = DiagnosisOptions()
 #: The summary keys of gain.json's ``over_texture_refit`` and ``over_shared_level`` comparisons.
@@ -268,11 +268,10 @@ def evaluate_extension(
 
 
 def measured_curve_form(level_scopes: dict) -> dict | None:
-    """gain.json ``curve_form`` of a within-site functional form: :func:`~skidsim.criticism.wlf.curve_shape` of the
-    sites' measured curves (every measured row of the between-site scope, else the within-site scope's held-out
-    speeds) and what it says of the shared shape (:func:`~skidsim.criticism.wlf.curve_form_reading`); None
-    without curves of at least 4 speeds."""
-    shape = scope_curve_shape(level_scopes.get("between-site") or level_scopes.get("within-site"))
+    """gain.json ``curve_form`` of a within-site functional form: the measured curves' shape
+    (:func:`~skidsim.criticism.wlf.measured_curve_shape`) and what it says of the shared shape
+    (:func:`~skidsim.criticism.wlf.curve_form_reading`); None without curves of at least 4 speeds."""
+    shape = measured_curve_shape(level_scopes.get)
     if shape is None:
         return None
     return {"curve_shape": shape, "reading": curve_form_reading(shape)}

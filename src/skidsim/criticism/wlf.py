@@ -250,24 +250,27 @@ def curve_form_reading(shape: dict) -> str:
     )
 
 
-def scope_curve_shape(scope: Scope | None) -> dict | None:
-    """:func:`curve_shape` of the measured curves of a scope (:func:`site_curves`); None without a scope or curves
-    of at least 4 speeds."""
+def measured_curve_shape(scope_of) -> dict | None:
+    """:func:`curve_shape` of the measured curves (:func:`site_curves`) of the between-site scope (every measured
+    row of every site), else of the within-site scope (the held-out speeds): the one rule for gain.json's
+    ``curve_form`` and :func:`label_law_form`. ``scope_of(level)`` gives the scope of a level or None (a dict's
+    ``get``, or :func:`~skidsim.criticism.scopes.make_scope` on the residuals, called for the within-site level only
+    without a between-site scope). None without a scope or curves of at least 4 speeds."""
+    scope = scope_of("between-site") or scope_of("within-site")
     curves = site_curves(scope) if scope is not None else None
     return curve_shape(*curves) if curves is not None else None
 
 
 def label_law_form(causes: list, residuals: pd.DataFrame) -> list:
     """The within-site functional form labelled :data:`~skidsim.criticism.causes.LAW_FORM` (category ``friction
-    law``) where :func:`curve_shape` of the measured curves (the rows of the between-site scope, else of the
-    within-site scope, :func:`~skidsim.criticism.scopes.make_scope`, as gain.json's ``curve_form``) finds them not
-    exponential decays of speed: the shape the sites share at held-out speeds is then the law's form, which the
+    law``) where the measured curves' shape (:func:`measured_curve_shape`, as gain.json's ``curve_form``) is not
+    an exponential decay of speed: the shape the sites share at held-out speeds is then the law's form, which the
     calibrated law cannot follow (:func:`curve_form_reading`). Ranks, p-values and significance stay as they are.
     In place; returns ``causes``."""
     k = next((k for k, c in enumerate(causes) if c.variable == "functional_form" and c.level == "within-site"), None)
     if k is None or "measured" not in residuals.columns:
         return causes
-    shape = scope_curve_shape(make_scope(residuals, "between-site") or make_scope(residuals, "within-site"))
+    shape = measured_curve_shape(lambda level: make_scope(residuals, level))
     if shape is not None and not shape["exponential"]:
         p = shape["stretch_exponent"]
         causes[k] = replace(
