@@ -144,3 +144,36 @@ def test_members_of_two_lead_terms_and_the_contact_zone():
     without = texture_members(cov.index, cov.drop(columns="raw_Sp"), "profile_MPD", np.zeros((n, 2)), lead, 2)
     assert "contact-zone microtexture" not in [m.name for m in without]
     assert members[0].speed_words == "the speed shape of friction is a nonlinear function of log(profile_MPD)"
+
+
+def test_mpd_x_speed_goes_above_the_texture_clusters_that_hold_mpd_within_sites_only():
+    """Ranking alone (``rank_causes``): a between-site cluster holding MPD whose level term has 8 times the
+    predictive evidence (cv_msr) of MPD x speed stays above a between-site MPD x speed (itself a texture-model misfit:
+    on the chips texture x speed rate campaigns the cluster's level term predicts held-out sites, MPD x speed does
+    not), while a within-site MPD x speed (the drainage hypothesis) goes above it; MPD x speed at either level goes
+    above a texture-model x speed member built on MPD (its cubic nests the linear column)."""
+    from dataclasses import replace
+
+    from skidsim.criticism.causes import Cause
+    from skidsim.criticism.ranking import rank_causes
+
+    group = ("macro_Sdq", "macro_Sdr", "profile_MPD")
+
+    def cause(variable, kind, cv_msr, **kw):
+        c = Cause(variable, "between-site", kind, 0.01, 0.5, 0.0001, 0.005, True, source="texture", group=group)
+        return replace(c, cv_msr=cv_msr, **kw)
+
+    cluster = cause("macro_Sdq", "main", 7e-4, unit="cluster:macro_Sdq")
+    mpd = cause("profile_MPD", "x_speed", 9e-5, unit="profile_MPD", family="primary")
+    member = cause("texture_model[nonlinear in profile_MPD]", "x_speed", 5e-4, source="texture_model", group=())
+    cov = pd.DataFrame({"profile_MPD": np.linspace(0.5, 1.5, 6)}, index=[f"s{k}" for k in range(6)])
+    out = rank_causes([mpd, cluster], cov, "profile_MPD")
+    assert [c.variable for c in out] == ["macro_Sdq", "profile_MPD"]
+    within = replace(mpd, level="within-site")
+    out = rank_causes([within, cluster], cov, "profile_MPD")
+    assert [(c.variable, c.level) for c in out] == [("profile_MPD", "within-site"), ("macro_Sdq", "between-site")]
+    for m in (mpd, within):
+        out = rank_causes([m, member, cluster], cov, "profile_MPD")
+        assert out.index(m) < out.index(member), out
+    out = rank_causes([mpd, member], cov, "profile_MPD")
+    assert out[0] is mpd

@@ -1,6 +1,6 @@
 """The ranking that names the top cause: the rules that make a column significant as an explanation, the order by
-evidence, then the parsimony rules (refinement, the naming rule of a section effect, MPD x speed above its texture
-clusters, the functional form below a covariate x speed) (:func:`rank_causes`, :func:`named_cause`).
+evidence, then the parsimony rules (refinement, the naming rule of a section effect, MPD x speed within sites above its
+texture clusters, the functional form below a covariate x speed) (:func:`rank_causes`, :func:`named_cause`).
 """
 
 from __future__ import annotations
@@ -14,23 +14,30 @@ from .section_naming import beyond_texture_explanations, columns_beyond_texture,
 
 
 def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
-    """The physical hypothesis on the MPD column ranks above the texture clusters that hold MPD (e.g. drainage
-    makes the texture model misfit the level of shallow-texture sites: the macrotexture height cluster is
-    significant between sites; MPD x speed names the mechanism), and above a texture-model candidate x speed built
-    on MPD (``texture_model[nonlinear in <MPD>]``, x_speed: its cubic nests the drainage hypothesis's linear
-    column, and the physical hypothesis is the more specific name). In place."""
+    """The first significant MPD x speed ranks above a texture-model candidate x speed built on MPD
+    (``texture_model[nonlinear in <MPD>]``, x_speed: its cubic nests the linear column, and the linear column is the
+    more specific name) and, within sites only, above the texture clusters that hold MPD. Within sites MPD x speed
+    is the drainage hypothesis, whose footprint the between-site clusters are (drainage makes the texture model
+    misfit the level of shallow-texture sites: the macrotexture height cluster is significant between sites; MPD x
+    speed names the mechanism). Between sites it is itself a misfit of the texture model (the IFI speed constant
+    the texture model misses), one description among the clusters, which keep their order by predictive evidence
+    (``cv_msr``): on texture x speed campaigns the cluster's level term carries several times its ``cv_msr`` and
+    predicts held-out sites, the speed-shape term does not (docs/model-criticism.md, section 2). In place."""
     if mpd_col is None:
         return
     mp = [k for k, c in enumerate(causes) if c.significant and c.variable == mpd_col and c.kind == "x_speed"]
+    if not mp:
+        return
+    within = causes[mp[0]].level == "within-site"
 
     def holds_mpd(c: Cause) -> bool:
         if c.source == "texture_model":
             axes = (mpd_col, f"log({mpd_col})")
             return c.kind == "x_speed" and c.variable in {f"texture_model[nonlinear in {a}]" for a in axes}
-        return mpd_col in c.group and c.unit is not None and str(c.unit).startswith("cluster:")
+        return within and mpd_col in c.group and c.unit is not None and str(c.unit).startswith("cluster:")
 
-    above = [k for k, c in enumerate(causes) if c.significant and mp and k < mp[0] and holds_mpd(c)]
-    if mp and above:
+    above = [k for k, c in enumerate(causes) if c.significant and k < mp[0] and holds_mpd(c)]
+    if above:
         causes.insert(above[0], causes.pop(mp[0]))
 
 
@@ -64,8 +71,9 @@ def rank_causes(causes: list[Cause], cov: pd.DataFrame, mpd_col: str | None, fdr
     significant causes first, among them by ``cv_msr`` (predictive evidence), the rest by ``p_adjusted``, then
     ``z``, and on ties (to 10 significant digits) the MPD column ``mpd_col`` first (a texture table also holds its
     affine copies, e.g. ETD); then the parsimony rules: :func:`order_by_refinement`, the naming rule of a section effect
-    (:func:`section_rule`), MPD x speed above the texture clusters holding MPD, the within-site functional form
-    below a significant within-site covariate x speed."""
+    (:func:`section_rule`), MPD x speed within sites above the texture clusters holding MPD
+    (:func:`_mpd_above_its_clusters`), the within-site functional form below a significant within-site covariate x
+    speed."""
     if fdr is None:
         fdr = DiagnosisOptions().fdr
     causes = section_explanations(causes, fdr)
