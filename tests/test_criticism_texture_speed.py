@@ -150,8 +150,9 @@ def test_mpd_x_speed_goes_above_the_texture_clusters_that_hold_mpd_within_sites_
     """Ranking alone (``rank_causes``): a between-site cluster holding MPD whose level term has 8 times the
     predictive evidence (cv_msr) of MPD x speed stays above a between-site MPD x speed (itself a texture-model misfit:
     on the chips texture x speed rate campaigns the cluster's level term predicts held-out sites, MPD x speed does
-    not), while a within-site MPD x speed (the drainage hypothesis) goes above it; MPD x speed at either level goes
-    above a texture-model x speed member built on MPD (its cubic nests the linear column)."""
+    not), while a within-site MPD x speed (the drainage hypothesis) goes above it, also where a between-site MPD x
+    speed ranks before it; MPD x speed at either level goes above a texture-model x speed member built on MPD (its
+    cubic nests the linear column)."""
     from dataclasses import replace
 
     from skidsim.criticism.causes import Cause
@@ -177,3 +178,6 @@ def test_mpd_x_speed_goes_above_the_texture_clusters_that_hold_mpd_within_sites_
         assert out.index(m) < out.index(member), out
     out = rank_causes([mpd, member], cov, "profile_MPD")
     assert out[0] is mpd
+    # both levels significant, the between-site one ranked first by cv_msr: the drainage hypothesis moves
+    out = rank_causes([cluster, replace(mpd, cv_msr=3e-4), replace(within, cv_msr=1e-4)], cov, "profile_MPD")
+    assert [(c.variable, c.level) for c in out][:2] == [("profile_MPD", "within-site"), ("macro_Sdq", "between-site")]

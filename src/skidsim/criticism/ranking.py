@@ -14,18 +14,20 @@ from .section_naming import beyond_texture_explanations, columns_beyond_texture,
 
 
 def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
-    """The first significant MPD x speed ranks above a texture-model candidate x speed built on MPD
+    """A significant MPD x speed ranks above a texture-model candidate x speed built on MPD
     (``texture_model[nonlinear in <MPD>]``, x_speed: its cubic nests the linear column, and the linear column is the
-    more specific name) and, within sites only, above the texture clusters that hold MPD. Within sites MPD x speed
-    is the drainage hypothesis, whose footprint the between-site clusters are (drainage makes the texture model
-    misfit the level of shallow-texture sites: the macrotexture height cluster is significant between sites; MPD x
-    speed names the mechanism). Between sites it is itself a misfit of the texture model (the IFI speed constant
-    the texture model misses), one description among the clusters, which keep their order by predictive evidence
-    (``cv_msr``): on texture x speed campaigns the cluster's level term carries several times its ``cv_msr`` and
-    predicts held-out sites, the speed-shape term does not (docs/model-criticism.md, section 2). In place."""
+    more specific name) and, within sites, above the texture clusters that hold MPD. Within sites MPD x speed is the
+    drainage hypothesis, whose footprint the between-site clusters are (drainage makes the texture model misfit the
+    level of shallow-texture sites: the macrotexture height cluster is significant between sites; MPD x speed names
+    the mechanism); it moves first when significant. Between sites it is itself a misfit of the texture model (the
+    IFI speed constant the texture model misses), one description among the clusters, which keep their order by
+    predictive evidence (``cv_msr``): on texture x speed campaigns the cluster's level term carries several times
+    its ``cv_msr`` and predicts held-out sites, the speed-shape term does not (docs/model-criticism.md, section 2).
+    In place."""
     if mpd_col is None:
         return
     mp = [k for k, c in enumerate(causes) if c.significant and c.variable == mpd_col and c.kind == "x_speed"]
+    mp.sort(key=lambda k: causes[k].level != "within-site")  # the drainage hypothesis first, then rank order
     if not mp:
         return
     within = causes[mp[0]].level == "within-site"
