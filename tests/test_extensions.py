@@ -226,6 +226,39 @@ def test_a_texture_model_term_on_the_speed_slope_recovers_a_slope_linear_in_its_
         TextureModelTerm("texture_model[x]", on="shape")
 
 
+def test_a_categorical_term_on_the_speed_slope_fits_each_groups_level_and_slope():
+    """A categorical x speed cause (a polished aggregate that loses low-speed friction lowers its mean too): the
+    slope form fits each group's residual level and speed slope, recovers both to 1e-12 and every training row;
+    a group unseen in training gets the least squares over all training rows; the level form fits group means."""
+    groups = np.array(list("ABCD"))[np.arange(12) % 4]
+    coef = {"A": (0.0, 0.0), "B": (-0.03, 8e-4), "C": (0.01, -2e-4), "D": (0.02, 5e-4)}  # mu, mu per km/h
+    sc = _texture_model_scope([coef[g][1] for g in groups], [coef[g][0] for g in groups])
+    cov = pd.DataFrame({"aggregate": groups}, index=[f"S{i}" for i in range(12)])
+    ext = CovariateTerm("aggregate", on="slope")
+    train = np.ones(len(sc.sites), bool)
+    p = recalibrate(ext, sc, cov, train)
+    for g, (level, slope) in coef.items():
+        np.testing.assert_allclose(p["groups"][g], [level, slope], rtol=0, atol=1e-12)
+    after = predict_extended(ext, p, sc, cov, train)
+    np.testing.assert_allclose(after, sc.rows["measured"], rtol=0, atol=1e-12)
+    unseen = np.array([g != "D" for g in cov.loc[sc.sites, "aggregate"]])
+    p = recalibrate(ext, sc, cov, unseen)
+    assert set(p["groups"]) == {"A", "B", "C"}
+    rows_tr = unseen[sc.row_site]
+    dv = sc.rows["speed_kmh"].to_numpy() - 45.0
+    resid = (sc.rows["measured"] - sc.rows["before"]).to_numpy()
+    overall = np.linalg.lstsq(np.c_[np.ones(rows_tr.sum()), dv[rows_tr]], resid[rows_tr], rcond=None)[0]
+    after = predict_extended(ext, p, sc, cov, unseen)
+    d_rows = ~rows_tr
+    np.testing.assert_allclose(
+        after[d_rows] - sc.rows["before"].to_numpy()[d_rows], overall[0] + overall[1] * dv[d_rows], atol=1e-12
+    )
+    flat = CovariateTerm("aggregate")
+    p = recalibrate(flat, sc, cov, train)
+    for g, (level, _) in coef.items():  # the mean over the symmetric speeds of level + slope (v - 45) is the level
+        np.testing.assert_allclose(p["groups"][g], [level], rtol=0, atol=1e-12)
+
+
 def test_wlf_from_curves_separates_temperature_from_the_macrotexture_decay():
     """PIARC/IFI-like curves whose decay constant is set by the macrotexture (Sp = 14.2 + 89.7 MPD km/h) and
     shifted by WLF (T_r 20 deg C) over a narrow temperature range (sections at 18-22 deg C) on campaigns whose

@@ -235,8 +235,10 @@ class CovariateTerm:
     """Generic linear term in a named covariate: ``on="level"`` adds ``b0 + b1 z_i``; ``on="slope"`` adds
     ``(c1 + b1 z_i)(v - v_mean,i)`` with ``v_mean,i`` the mean of site i's evaluated speeds (km/h), a pure shape
     term that leaves the site's mean level alone. Numeric z is centred on the training mean; a categorical
-    covariate enters through group means (level) or group slopes (slope) fitted on the training sites; a level
-    unseen in training gets the training-wide value. ``texture_pcs >= 0`` (a cause found by the texture-adjusted
+    covariate enters through group means (level), or with ``on="slope"`` through each group's residual level and
+    speed slope ``c_g0 + c_g1 (v - v_mean,i)`` (a group whose friction changes with speed, a polished aggregate
+    that loses low-speed friction, changes its mean too), fitted on the training sites; a level unseen in training
+    gets the training-wide value. ``texture_pcs >= 0`` (a cause found by the texture-adjusted
     test, numeric z, between sites): a texture refit, not a residual term. The texture model has already taken part
     of such an effect into its texture coefficients, so the prediction's site level (``on="level"``) or speed
     slope (``on="slope"``) is replaced by that of the linear model ``[1, PC_1..k, z]`` fitted on the training

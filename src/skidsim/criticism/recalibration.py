@@ -293,17 +293,25 @@ def _recalibrate_shape(ext: SharedShape, scope: Scope, resid: np.ndarray, rows_t
     return {"speed_kmh": prof.index.to_list(), "h": prof.to_list()}
 
 
+def _categorical_rows(on: str, dv: np.ndarray) -> np.ndarray:
+    """A categorical term's regressors per row: ``[1]`` (level) or ``[1, v - v_mean,i]`` (slope: each group's
+    residual level and speed slope, km/h)."""
+    return np.ones((len(dv), 1)) if on == "level" else np.c_[np.ones(len(dv)), dv]
+
+
 def _recalibrate_categorical(
     ext: CovariateTerm, col: pd.Series, scope: Scope, resid: np.ndarray, rows_tr: np.ndarray, dv: np.ndarray
 ) -> dict:
+    """Least squares per group of the training rows' residuals on :func:`_categorical_rows`, and over all the
+    training rows for a group unseen in training (``overall``)."""
     lab = col.astype(str).to_numpy()[scope.row_site]
+    X = _categorical_rows(ext.on, dv)
     groups = {}
     for g in np.unique(lab[rows_tr]):
         m = rows_tr & (lab == g)
-        X = np.ones((m.sum(), 1)) if ext.on == "level" else dv[m][:, None]
-        groups[str(g)] = np.linalg.lstsq(X, resid[m], rcond=None)[0].tolist()
-    X = np.ones((rows_tr.sum(), 1)) if ext.on == "level" else dv[rows_tr][:, None]
-    return {"numeric": False, "groups": groups, "overall": np.linalg.lstsq(X, resid[rows_tr], rcond=None)[0].tolist()}
+        groups[str(g)] = np.linalg.lstsq(X[m], resid[m], rcond=None)[0].tolist()
+    overall = np.linalg.lstsq(X[rows_tr], resid[rows_tr], rcond=None)[0].tolist()
+    return {"numeric": False, "groups": groups, "overall": overall}
 
 
 def _recalibrate_covariate(ext: CovariateTerm, scope: Scope, cov: pd.DataFrame, train: np.ndarray) -> dict:
@@ -391,11 +399,8 @@ def _predict_covariate(ext: CovariateTerm, params: dict, scope: Scope, cov: pd.D
         X = np.c_[np.ones(len(dv)), zr] if ext.on == "level" else np.c_[dv, zr * dv]
         return before + X @ np.asarray(params["beta"])
     lab = col.astype(str).to_numpy()[scope.row_site]
-    out = before.copy()
-    for j in range(len(dv)):
-        c = params["groups"].get(lab[j], params["overall"])
-        out[j] += c[0] * (1.0 if ext.on == "level" else dv[j])
-    return out
+    coef = np.array([params["groups"].get(g, params["overall"]) for g in lab])
+    return before + (_categorical_rows(ext.on, dv) * coef).sum(axis=1)
 
 
 def predict_extended(ext, params: dict, scope: Scope, cov: pd.DataFrame, train: np.ndarray) -> np.ndarray:
