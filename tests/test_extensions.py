@@ -18,7 +18,7 @@ from skidsim.criticism.extensions import (
     wlf_log10_shift,
 )
 from skidsim.criticism.recalibration import predict_extended, recalibrate
-from skidsim.criticism.scopes import make_scope
+from skidsim.criticism.scopes import centred_speed, make_scope
 from skidsim.errors import ConfigError, InputError
 
 
@@ -245,7 +245,7 @@ def test_a_categorical_term_on_the_speed_slope_fits_each_groups_level_and_slope(
     p = recalibrate(ext, sc, cov, unseen)
     assert set(p["groups"]) == {"A", "B", "C"}
     rows_tr = unseen[sc.row_site]
-    dv = sc.rows["speed_kmh"].to_numpy() - 45.0
+    dv = centred_speed(sc)
     resid = (sc.rows["measured"] - sc.rows["before"]).to_numpy()
     overall = np.linalg.lstsq(np.c_[np.ones(rows_tr.sum()), dv[rows_tr]], resid[rows_tr], rcond=None)[0]
     after = predict_extended(ext, p, sc, cov, unseen)

@@ -233,8 +233,8 @@ class DrainageIFI:
 @dataclass(frozen=True)
 class CovariateTerm:
     """Generic linear term in a named covariate: ``on="level"`` adds ``b0 + b1 z_i``; ``on="slope"`` adds
-    ``(c1 + b1 z_i)(v - v_mean,i)`` with ``v_mean,i`` the mean of site i's evaluated speeds (km/h), a pure shape
-    term that leaves the site's mean level alone. Numeric z is centred on the training mean; a categorical
+    ``(c1 + b1 z_i)(v - v_mean,i)`` with ``v_mean,i`` the mean of site i's evaluated speeds (km/h), for numeric z
+    a pure shape term that leaves the site's mean level alone. Numeric z is centred on the training mean; a categorical
     covariate enters through group means (level), or with ``on="slope"`` through each group's residual level and
     speed slope ``c_g0 + c_g1 (v - v_mean,i)`` (a group whose friction changes with speed, a polished aggregate
     that loses low-speed friction, changes its mean too), fitted on the training sites; a level unseen in training

@@ -293,6 +293,12 @@ def _recalibrate_shape(ext: SharedShape, scope: Scope, resid: np.ndarray, rows_t
     return {"speed_kmh": prof.index.to_list(), "h": prof.to_list()}
 
 
+def _numeric_rows(on: str, zr: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """A numeric term's regressors per row, ``zr`` the covariate centred on its training mean: ``[1, z]`` (level)
+    or ``[v - v_mean,i, z (v - v_mean,i)]`` (slope: a pure shape term, km/h)."""
+    return np.c_[np.ones(len(dv)), zr] if on == "level" else np.c_[dv, zr * dv]
+
+
 def _categorical_rows(on: str, dv: np.ndarray) -> np.ndarray:
     """A categorical term's regressors per row: ``[1]`` (level) or ``[1, v - v_mean,i]`` (slope: each group's
     residual level and speed slope, km/h)."""
@@ -331,7 +337,7 @@ def _recalibrate_covariate(ext: CovariateTerm, scope: Scope, cov: pd.DataFrame, 
         return {"numeric": True, "texture_pcs": ext.texture_pcs, "beta": beta.tolist()}
     z = col.to_numpy(float)
     zr = (z - z[train].mean())[scope.row_site]
-    X = np.c_[np.ones(len(dv)), zr] if ext.on == "level" else np.c_[dv, zr * dv]
+    X = _numeric_rows(ext.on, zr, dv)
     beta, *_ = np.linalg.lstsq(X[rows_tr], resid[rows_tr], rcond=None)
     return {"numeric": True, "z_mean": float(z[train].mean()), "beta": beta.tolist()}
 
@@ -396,8 +402,7 @@ def _predict_covariate(ext: CovariateTerm, params: dict, scope: Scope, cov: pd.D
         return before + refit_correction(ext.on, params["beta"], X, scope, before, dv)
     if params["numeric"]:
         zr = (col.to_numpy(float) - params["z_mean"])[scope.row_site]
-        X = np.c_[np.ones(len(dv)), zr] if ext.on == "level" else np.c_[dv, zr * dv]
-        return before + X @ np.asarray(params["beta"])
+        return before + _numeric_rows(ext.on, zr, dv) @ np.asarray(params["beta"])
     lab = col.astype(str).to_numpy()[scope.row_site]
     coef = np.array([params["groups"].get(g, params["overall"]) for g in lab])
     return before + (_categorical_rows(ext.on, dv) * coef).sum(axis=1)
