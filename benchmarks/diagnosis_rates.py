@@ -3,11 +3,13 @@
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/diagnosis_rates.py --seeds 0-19 --jobs 2 \
         [--generators default,chips,spectral] [--kinds none,section_column,...] [--n-permutations 4999] \
         [--n-boot 200] [--screen-only] [--beyond-size MU] [--out results/diagnosis_rates] [--cache DIR] [--designs N] \
-        [--texture-share S] [--fdr Q]
+        [--texture-share S] [--fdr Q] [--trace-from KMH] [--temperature-range LO,HI]
 
 Campaigns: tests/diagnosis_rate_campaigns.py (36 sites, 12 sections; the FE replaced by a per-site calibration of
 the exponential-decay law, the texture model by a physics2@dft-like least squares on log MPD and log micro Sq; the
-texture of chips and spectral from the generators' own surfaces, cached per design in ``--cache``). Per generator
+texture of chips and spectral from the generators' own surfaces, cached per design in ``--cache``; the DFT traces
+from ``--trace-from``, 20 km/h by default, up to 80 km/h; the sections' temperatures in ``--temperature-range``,
+18-22 deg C by default). Per generator
 x kind x seed the whole diagnosis (:func:`skidsim.criticism.diagnose`, ``DiagnosisOptions(seed=seed, n_boot=...,
 n_permutations=...)``) sees only the campaign tables; the truth is used only to score:
 
@@ -154,12 +156,12 @@ def run_one(args: tuple) -> dict:
     from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
     from skidsim.criticism.causes import MODEL_CATEGORIES
 
-    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, overrides = args
+    source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, overrides, campaign = args
     t0 = time.perf_counter()
-    t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, n_designs=n_designs)
+    t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, n_designs=n_designs, **campaign)
     if beyond is not None and kind != "none":  # rescale: the part beyond the texture model's terms has sd `beyond`
         size = beyond / truth["effect_sd_beyond_texture_model_mu"]
-        t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, size=size, n_designs=n_designs)
+        t, truth = make_rate_campaign(source, kind, seed, cache_dir=cache, size=size, n_designs=n_designs, **campaign)
     opts = DiagnosisOptions(seed=seed, n_permutations=n_perm, n_boot=n_boot, **overrides)
     if screen_only:  # the screening of cr.diagnose, without the extension and its gain
         causes = screen_rate_campaign(t, opts)
@@ -355,6 +357,20 @@ def main(argv=None):
         "campaigns with a false name (default: DiagnosisOptions' own)",
     )
     ap.add_argument(
+        "--trace-from",
+        type=float,
+        default=20.0,
+        metavar="KMH",
+        help="the DFT trace's lowest speed in km/h (default 20: no point below the simulated speeds; e.g. 5 for a "
+        "spin-down trace's low speeds, which the WLF shift of a temperature cause is read from)",
+    )
+    ap.add_argument(
+        "--temperature-range",
+        default=None,
+        metavar="LO,HI",
+        help="range of the sections' temperatures in deg C (default 18,22: tests/diagnosis_rate_campaigns.py)",
+    )
+    ap.add_argument(
         "--figure-only",
         nargs="+",
         default=None,
@@ -386,8 +402,12 @@ def main(argv=None):
         pass
     # DiagnosisOptions fields set on the command line; the others keep the dataclass's defaults (their one home)
     overrides = {f: v for f, v in (("texture_share", a.texture_share), ("fdr", a.fdr)) if v is not None}
+    campaign = {"trace_from_kmh": a.trace_from}
+    if a.temperature_range is not None:
+        lo, _, hi = a.temperature_range.partition(",")
+        campaign["temperature_section_c"] = (float(lo), float(hi))
     jobs = [
-        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs, overrides)
+        (g, k, s, a.n_permutations, a.n_boot, a.cache, a.screen_only, a.beyond_size, a.designs, overrides, campaign)
         for g in gens
         for k in kinds
         for s in seeds

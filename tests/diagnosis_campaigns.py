@@ -221,11 +221,17 @@ def derive_tables(sites: pd.DataFrame, measured: pd.DataFrame, tex: pd.DataFrame
 TEXTURE_FILE = "texture.csv"
 
 
-def measured_points(site, truth_mu, noise_mu: float, trace_step_kmh: float, rng) -> pd.DataFrame:
+def measured_points(
+    site, truth_mu, noise_mu: float, trace_step_kmh: float, rng, trace_from_kmh: float = 20.0
+) -> pd.DataFrame:
     """DFT points of every site: ``truth_mu(i, v)`` plus white noise of ``noise_mu`` (mu) at the calibration and
-    validation speeds and 1.5 times that on a trace every ``trace_step_kmh`` km/h from 20 to 80 km/h (none for 0);
-    columns site, speed_kmh, mu, kind. Draws from ``rng`` site by site, in that order of kinds."""
+    validation speeds and 1.5 times that on a trace every ``trace_step_kmh`` km/h from 20 to 80 km/h (none for 0),
+    and below 20 km/h down to ``trace_from_kmh`` on the same step (a spin-down trace's low speeds, which the
+    simulation does not reach); columns site, speed_kmh, mu, kind. Draws from ``rng`` site by site, in that order
+    of kinds."""
     trace_v = np.arange(20.0, 80.0 + 1e-9, trace_step_kmh) if trace_step_kmh else np.array([])
+    if trace_step_kmh and trace_from_kmh < 20.0:
+        trace_v = np.r_[np.arange(20.0 - trace_step_kmh, trace_from_kmh - 1e-9, -trace_step_kmh)[::-1], trace_v]
     rows = []
     for i in range(len(site)):
         for kind, vs, sd in (

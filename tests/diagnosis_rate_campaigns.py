@@ -309,8 +309,9 @@ def default_texture(seed: int) -> pd.DataFrame:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def site_design(seed: int, site, section) -> pd.DataFrame:
-    """sites.csv of a campaign: identifiers and the decoy columns (every kind has the same columns)."""
+def site_design(seed: int, site, section, temperature_section_c: tuple = TEMP_SECTION_C) -> pd.DataFrame:
+    """sites.csv of a campaign: identifiers and the decoy columns (every kind has the same columns); the sections'
+    temperatures U(``temperature_section_c``) deg C."""
     rng = _rng(seed, "sites")
     secs = list(dict.fromkeys(section))
     k = len(secs)
@@ -322,7 +323,7 @@ def site_design(seed: int, site, section) -> pd.DataFrame:
 
     stations = np.array([(0, 100, 200), (0, 300, 600)])[rng.integers(0, 2, size=k)]
     pos = np.concatenate([np.arange((sec_of == j).sum()) for j in range(k)])
-    t_sec = rng.uniform(*TEMP_SECTION_C, size=k)
+    t_sec = rng.uniform(*temperature_section_c, size=k)
     return pd.DataFrame(
         {
             "site": list(site),
@@ -397,6 +398,8 @@ def generate(
     trace_step_kmh: float = 4.0,
     texture: pd.DataFrame | None = None,
     n_designs: int = N_DESIGNS,
+    trace_from_kmh: float = 20.0,
+    temperature_section_c: tuple = TEMP_SECTION_C,
 ):
     """Return (sites, measured, texture, truth) of one campaign: sites.csv columns, DFT points (site, speed_kmh,
     mu, kind), the texture table (site + numeric columns; the hidden measures are not in it) and the truth dict
@@ -405,7 +408,9 @@ def generate(
     (:func:`beyond_texture_model`), effect_rms_mu: RMS of the
     effect over sites and 20-70 km/h about its campaign mean per speed). ``texture``: a precomputed
     :func:`generator_texture` table (else design :func:`design_of` (``seed``, ``n_designs``) is computed or read
-    from ``cache_dir``)."""
+    from ``cache_dir``). ``trace_from_kmh``: the DFT trace's lowest speed (km/h; 20 by default: none below the
+    simulated speeds; :func:`diagnosis_campaigns.measured_points`); ``temperature_section_c``: the range (deg C) of
+    the sections' temperatures (:func:`site_design`)."""
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
     if source not in SOURCES:
@@ -416,7 +421,7 @@ def generate(
         texture = default_texture(seed) if gen == "default" else generator_texture(gen, design, cache_dir)
     tex = texture.reset_index(drop=True)
     n = len(tex)
-    sites = site_design(seed, tex["site"], tex["section"])
+    sites = site_design(seed, tex["site"], tex["section"], tuple(temperature_section_c))
     rng = _rng(seed, source, "friction")
     micro = tex["hidden_micro_sq_mm"].to_numpy(float)
     if kind == "texture_measure":
@@ -443,7 +448,7 @@ def generate(
     noise = noise_mu if noise_mu is not None else (0.005 if source == "default" else 0.007)  # mu per DFT point
     rng_n = _rng(seed, source, kind, "noise")
     site = tex["site"].astype(str).tolist()
-    measured = measured_points(site, truth_mu, noise, trace_step_kmh, rng_n)
+    measured = measured_points(site, truth_mu, noise, trace_step_kmh, rng_n, trace_from_kmh)
     grid = np.arange(20.0, 70.0 + 1e-9, 5.0)
     eff = np.array([truth_mu(i, grid) - plain(i, grid) for i in range(n)]) if kind != "none" else np.zeros((n, 1))
     table = tex[[c for c in tex.columns if c != "section" and not c.startswith("hidden_")]].copy()

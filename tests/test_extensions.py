@@ -293,3 +293,86 @@ def test_wlf_from_curves_separates_temperature_from_the_macrotexture_decay():
     assert -1.0 < np.median(slopes) < -0.6, slopes  # d log10(1/Sp) / d log10 MPD near MPD 0.9 mm: -0.85
     for bad in (pd.DataFrame({"other": mpd}, index=cov.index), cov.assign(profile_MPD=-mpd)):
         assert decay_covariate(ext, bad, list(cov.index)) == (None, None)
+
+
+def test_the_wlf_shift_is_read_from_the_whole_measured_curve_below_the_simulated_speeds():
+    """Exponential-decay curves shifted by WLF (T_r 20 deg C, the universal C1 and C2) over a season's
+    temperatures (sections at 8-28 deg C), DFT noise 0.0075 mu: the residual rows stop at the simulated speeds
+    (20-70 km/h), where the per-site decay constants are poorly pinned (b and c are free per site); the spin-down
+    trace goes on down to 5 km/h. Read from the whole measured curves (``make_scope(..., measured)``, gain.json's
+    ``t_ref_c_all_sites``), T_r comes back within 5 deg C in at least 7 of 8 campaigns; from the rows alone in at
+    most 4. ``measured_curves`` keeps the points at or above 5 km/h, averages equal speeds and gives None when a
+    site has none."""
+    from skidsim.criticism.scopes import measured_curves
+    from skidsim.criticism.wlf import temperature_identifiability
+
+    within = {"curves": 0, "rows": 0}
+    v = np.arange(5.0, 80.1, 2.5)
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        site = [f"s{i}" for i in range(36)]
+        t = np.repeat(rng.uniform(8.0, 28.0, 12), 3) + rng.normal(0.0, 0.7, 36)
+        sites = pd.DataFrame({"site": site, "section": np.repeat([f"S{k}" for k in range(12)], 3), "temperature_c": t})
+        mu_k = rng.uniform(0.3, 0.6, 36)
+        c = 0.08 + 0.14 * np.exp(rng.normal(np.log(0.8), 0.3, 36))
+        a_t = 10.0 ** wlf_log10_shift(t, 20.0)
+        y = mu_k[:, None] + c[:, None] * np.exp(-0.08 * a_t[:, None] * v / 3.6) + rng.normal(0.0, 0.0075, (36, v.size))
+        measured = pd.DataFrame({"site": np.repeat(site, v.size), "speed_kmh": np.tile(v, 36), "mu": y.ravel()})
+        res = measured[(measured["speed_kmh"] >= 20.0) & (measured["speed_kmh"] <= 70.0)].rename(
+            columns={"mu": "measured"}
+        )
+        res = res.assign(level="between-site", kind="trace", model=res["measured"].mean(), section="S0")
+        res["residual"] = res["measured"] - res["model"]
+        cov, _ = site_covariates(sites, pd.DataFrame({"site": site, "mpd_mm": np.ones(36)}))
+        for key, scope in (
+            ("curves", make_scope(res, "between-site", measured)),
+            ("rows", make_scope(res, "between-site")),
+        ):
+            assert (scope.curves is not None) == (key == "curves")
+            fit = temperature_identifiability(TemperatureShift(), scope, cov, n_perm=0)
+            within[key] += abs(fit["t_ref_c"] - 20.0) <= 5.0
+    assert within["curves"] >= 7 and within["rows"] <= 4, within
+    low = pd.DataFrame(
+        {
+            "site": ["a"] * 6 + ["b"] * 3,
+            "speed_kmh": [3.0, 10.0, 10.0, 20.0, 30.0, 40.0, 20.0, 30.0, 40.0],
+            "mu": [0.9, 0.6, 0.8, 0.5, 0.45, 0.4, 0.5, 0.45, 0.4],
+        }
+    )
+    V, Y = measured_curves(low, ["a", "b"])
+    assert np.isfinite(V).sum(axis=1).tolist() == [4, 3] and V[0, 0] == 10.0 and Y[0, 0] == pytest.approx(0.7)
+    assert measured_curves(low[low["speed_kmh"] != 40.0], ["a", "b"]) is None  # no site with 4 speeds
+    assert measured_curves(low, ["a", "b", "c"]) is None
+
+
+def test_the_reference_temperature_keeps_off_the_wlf_pole_at_a_texture_adjusted_temperature():
+    """A texture-adjusted temperature cause evaluates the shift at ``T~`` = the training mean plus the part of T the
+    texture PCs do not predict; at a held-out site whose texture predicts 56 deg C where it measured 16, ``T~`` is
+    about 40 K below every measured temperature. T_r's upper bound then keeps 5 K inside the WLF pole at ``T~``
+    (it was set from the measured temperatures alone, and the fit raised "WLF undefined" on the bound)."""
+    from skidsim.criticism.recalibration import _physical_params, _shift_temperatures
+
+    sites, tex, t = _scope_tables(kappa=None)
+    res = t.assign(
+        level="between-site",
+        model=t["base"],
+        residual=t["measured"] - t["base"],
+        section=t["site"].map(sites.set_index("site")["section"]),
+    )
+    cov, _ = site_covariates(sites, tex)
+    sc = make_scope(res, "between-site")
+    temps = cov.loc[sc.sites, "temperature_c"].to_numpy(float)
+    train = np.ones(len(sc.sites), bool)
+    held = int(np.argmin(np.abs(temps - 16.0)))
+    train[held] = False
+    tpc = (temps - 16.0) / 2.0
+    tpc[held] = 20.0  # the texture of this site says 56 deg C
+    cov.loc[sc.sites, "_tpc1"] = tpc
+    ext = TemperatureShift(texture_pcs=1)
+    t_eval, _ = _shift_temperatures(ext, sc, cov, train)
+    assert t_eval.min() < temps.min() - 30.0
+    names, bounds = _physical_params(ext, sc, cov, train)
+    assert names == ["t_ref_c", "level_per_c"] and bounds[0][1] == pytest.approx(t_eval.min() + 101.6 - 5.0)
+    assert _physical_params(ext, sc, cov)[1][0][1] == pytest.approx(temps.min() + 101.6 - 5.0)
+    p = recalibrate(ext, sc, cov, train)
+    assert np.isfinite(predict_extended(ext, p, sc, cov, train)).all()

@@ -164,6 +164,8 @@ def diagnose(
         texture = _beyond_lead_texture(top, res, cov, texture, inputs.prediction_features, options)
     if term is not None:  # the figures plot the residual against the member's first column (its standardised axis)
         cov = cov.join(pd.Series([r[0] for r in term.design], index=list(term.sites), name=top.variable))
-    gain, preds = evaluate_extension(model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude)
+    gain, preds = evaluate_extension(
+        model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude, measured=inputs.measured
+    )
     av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
     return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, av, untested)

@@ -224,14 +224,18 @@ def evaluate_extension(
     *,
     texture_pc_scores: pd.DataFrame | None = None,
     exclude=DEFAULT_EXCLUDE,
+    measured: pd.DataFrame | None = None,
 ) -> tuple[dict, pd.DataFrame]:
     """Cross-fit the extension (and its generic fallback) on held-out speeds and held-out sites, measure the gain.
 
     The primary extension is the physical one unless its RMSE-gain interval at the cause's level does not exclude 0
     while the fallback's lower bound is higher ("no physical model fits"). ``texture_pc_scores``: the PC scores of
     the texture-adjusted test (:func:`~skidsim.criticism.covariates.between_site_texture_scores`) for the
-    texture-refit terms. Returns (gain dict, predictions)."""
-    level_scopes = {level: make_scope(residuals, level) for level in LEVELS}  # built once, used by every extension
+    texture-refit terms. ``measured`` (site, speed_kmh, mu): the DFT points, whose whole curves (down to 5 km/h,
+    below the simulated speeds) the WLF shift of a temperature cause is read from (:func:`~skidsim.criticism.wlf.
+    wlf_curves`); None: the residual rows. Returns (gain dict, predictions)."""
+    # built once, used by every extension
+    level_scopes = {level: make_scope(residuals, level, measured) for level in LEVELS}
     cov = _refit_covariates(residuals, sites, texture_wide, level_scopes, texture_pc_scores, exclude)
     own = "held_out_speeds" if model.cause.level == "within-site" else "held_out_sites"
     results = []

@@ -27,7 +27,7 @@ from .extensions import (
     fit_exp_curves,
 )
 from .scopes import Scope, centred_speed, site_mean, site_target, site_values
-from .wlf import curve_bc, decay_covariate, log10_decay_column, site_curves, wlf_from_curves
+from .wlf import curve_bc, decay_covariate, log10_decay_column, wlf_curves, wlf_from_curves
 
 # ----------------------------------------------------------------------------------------------------------------
 # texture refit
@@ -64,10 +64,15 @@ def _texture_partial(scope: Scope, cov: pd.DataFrame, z: np.ndarray, train: np.n
 # ----------------------------------------------------------------------------------------------------------------
 
 
-def _physical_params(ext, scope: Scope, cov: pd.DataFrame) -> tuple[list, list]:
-    """Names and bounds of the fitted parameters of a physical extension in a scope."""
+def _physical_params(ext, scope: Scope, cov: pd.DataFrame, train: np.ndarray | None = None) -> tuple[list, list]:
+    """Names and bounds of the fitted parameters of a physical extension in a scope. With ``train``, T_r's upper
+    bound also keeps 5 K inside the WLF pole at the temperatures the shift is evaluated at (:func:`_shift_temperatures`:
+    for a texture-adjusted cause the part of T the texture does not predict, which can reach below the measured
+    temperatures at a held-out site)."""
     if isinstance(ext, TemperatureShift):
         tb = ext.t_ref_bounds_c(site_values(cov, ext.column, scope.sites))
+        if train is not None:
+            tb = (tb[0], min(tb[1], ext.t_ref_bounds_c(_shift_temperatures(ext, scope, cov, train)[0])[1]))
         if ext.fit_level:
             return ["t_ref_c", "level_per_c"], [tb, ext.level_bounds_per_c]
         return ["t_ref_c"], [tb]
@@ -83,6 +88,16 @@ def _training_offset(scope: Scope, train: np.ndarray, after: np.ndarray) -> floa
     return float(np.mean(scope.rows["measured"].to_numpy(float)[rtr] - after[rtr]))
 
 
+def _shift_temperatures(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, train: np.ndarray):
+    """The temperatures (deg C) at which the shift of the prediction is evaluated, per site of the scope, and the
+    anchor (their training mean): the measured ones, or for a texture-adjusted cause (``texture_pcs >= 0``) the
+    training mean plus the part the texture PCs do not predict."""
+    T = site_values(cov, ext.column, scope.sites)
+    if ext.texture_pcs >= 0:
+        T = float(T[train].mean()) + _texture_partial(scope, cov, T, train, ext.texture_pcs)
+    return T, float(T[train].mean())
+
+
 def _after_temperature(
     ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, train: np.ndarray, theta: np.ndarray
 ) -> np.ndarray:
@@ -95,10 +110,7 @@ def _after_temperature(
         # so a per-site calibration absorbs a temperature shift exactly and 'after' equals 'before' (the
         # vertical factor b_T scales b and c and is absorbed likewise)
         return before.copy()
-    T = site_values(cov, ext.column, scope.sites)
-    if ext.texture_pcs >= 0:
-        T = float(T[train].mean()) + _texture_partial(scope, cov, T, train, ext.texture_pcs)
-    anchor = float(T[train].mean())
+    T, anchor = _shift_temperatures(ext, scope, cov, train)
     k = ext.speed_factor(T, anchor, float(theta[0]))
     bt = ext.vertical_factor(T, anchor, float(theta[1]) if len(theta) > 1 else None)
     b0, c0, a0 = scope.base
@@ -194,7 +206,7 @@ def _recalibrate_temperature_between(ext: TemperatureShift, scope: Scope, cov: p
     """Between sites: T_r from the training sites' measured curves (:func:`wlf_from_curves`; nuisance of the
     reference decay constant: the ``texture_pcs`` texture PCs of a texture-adjusted cause), then the vertical
     factor's slope on the training rows with T_r held. None with fewer than 4 measured speeds per site."""
-    curves = site_curves(scope)
+    curves = wlf_curves(scope)
     if curves is None:
         return None
     V, Y = curves
@@ -269,7 +281,7 @@ def _recalibrate_physical(ext, scope: Scope, cov: pd.DataFrame, train: np.ndarra
         for fit in fits:
             fit["train_sse"] = _train_sse(replace(ext, form=fit["form"]), fit, scope, cov, train)
         return min(fits, key=lambda fit: fit["train_sse"])
-    names, bounds = _physical_params(ext, scope, cov)
+    names, bounds = _physical_params(ext, scope, cov, train)
     rows_tr = train[scope.row_site]
     y = scope.rows["measured"].to_numpy(float)
 

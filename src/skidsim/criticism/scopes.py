@@ -24,6 +24,7 @@ class Scope:
     fit_y: np.ndarray
     row_site: np.ndarray  # index into sites per row
     base: tuple = ()  # (b, c, alpha) of the plain exponential fit to (fit_v, fit_y), per site
+    curves: tuple | None = None  # (V km/h, Y mu) of the sites' whole measured DFT curves (measured_curves), or None
 
 
 def _rows_and_fit(residuals: pd.DataFrame, level: str):
@@ -51,8 +52,28 @@ def _padded_points(fit: pd.DataFrame, sites: list) -> tuple[np.ndarray, np.ndarr
     return fv, fy
 
 
-def make_scope(residuals: pd.DataFrame, level: str) -> Scope | None:
-    """The scope of a level; sites with fewer than 3 points to fit the law are left out; None below 4 sites."""
+#: Lowest speed (km/h) of the measured DFT points in :func:`measured_curves`: below it the disc is stopping.
+CURVE_MIN_SPEED_KMH = 5.0
+
+
+def measured_curves(measured: pd.DataFrame, sites: list, min_speed_kmh: float = CURVE_MIN_SPEED_KMH):
+    """The whole measured DFT curve of each site of ``sites`` (every point of ``measured``: site, speed_kmh, mu,
+    at or above ``min_speed_kmh``, equal speeds averaged), as ``(V km/h, Y mu)`` (n_sites, J), NaN padded; None
+    when a site has no point or none has 4 speeds (as :func:`skidsim.criticism.wlf.site_curves`). Unlike the
+    residual rows, which stop where the simulation does (20-70 km/h by default), the curve keeps the trace's low
+    speeds, where the decay of friction with slip speed shows."""
+    m = measured[["site", "speed_kmh", "mu"]].assign(site=measured["site"].astype(str))
+    m = m[(m["speed_kmh"] >= min_speed_kmh) & np.isfinite(m["mu"]) & m["site"].isin(set(sites))]
+    if m.empty or m["site"].nunique() < len(sites):
+        return None
+    V, Y = _padded_points(m.rename(columns={"mu": "y"}), sites)
+    return (V, Y) if np.isfinite(V).sum(axis=1).max() >= 4 else None
+
+
+def make_scope(residuals: pd.DataFrame, level: str, measured: pd.DataFrame | None = None) -> Scope | None:
+    """The scope of a level; sites with fewer than 3 points to fit the law are left out; None below 4 sites.
+    ``measured`` (site, speed_kmh, mu): the DFT points, for the between-site scope's whole measured curves
+    (:func:`measured_curves`; None: the scope holds none)."""
     parts = _rows_and_fit(residuals, level)
     if parts is None:
         return None
@@ -67,9 +88,10 @@ def make_scope(residuals: pd.DataFrame, level: str) -> Scope | None:
     if len(keep) < 4:
         return None
     if not ok.all():
-        return make_scope(residuals[~residuals["site"].astype(str).isin(set(sites) - set(keep))], level)
+        return make_scope(residuals[~residuals["site"].astype(str).isin(set(sites) - set(keep))], level, measured)
     pos = {s: k for k, s in enumerate(sites)}
-    return Scope(name, rows, sites, fv, fy, rows["site"].map(pos).to_numpy(), fit_exp_curves(fv, fy))
+    curves = measured_curves(measured, sites) if measured is not None and name == "held_out_sites" else None
+    return Scope(name, rows, sites, fv, fy, rows["site"].map(pos).to_numpy(), fit_exp_curves(fv, fy), curves)
 
 
 def site_values(cov: pd.DataFrame, column: str, sites: list) -> np.ndarray:

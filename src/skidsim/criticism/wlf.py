@@ -328,11 +328,18 @@ def site_curves(scope: Scope):
     return V, Y
 
 
+def wlf_curves(scope: Scope):
+    """The measured curves the WLF shift is read from: the scope's whole measured DFT curves where it holds them
+    (:func:`~skidsim.criticism.scopes.measured_curves`: down to 5 km/h, where the decay constant shows), else its
+    rows (:func:`site_curves`)."""
+    return scope.curves if scope.curves is not None else site_curves(scope)
+
+
 def temperature_identifiability(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, n_perm: int = 99) -> dict:
     """:func:`wlf_from_curves` on every site of the held-out-site scope with ``n_perm`` permutations of the
     temperatures (gain.json ``identifiability``), and :func:`curve_shape` of the same curves (``curve_shape``);
-    None without measured curves."""
-    curves = site_curves(scope)
+    None without measured curves. The curves are :func:`wlf_curves`."""
+    curves = wlf_curves(scope)
     if curves is None:
         return None
     T = site_values(cov, ext.column, scope.sites)
