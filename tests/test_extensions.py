@@ -169,9 +169,10 @@ def test_recalibrate_drainage_recovers_kappa_within_site(form, kappa):
     assert np.abs(sc.rows["measured"] - after).max() < 0.05 * before_err  # ... the extension recovers it
 
 
-def test_recalibrate_temperature_recovers_reference_between_sites():
+def _wlf_between_scope():
+    """(covariates, between-site scope) of :func:`_scope_tables` with a WLF truth (T_r = -40 C): the texture-model
+    predictions are the temperature-free law."""
     sites, tex, t = _scope_tables(kappa=None)
-    # texture-model predictions = the temperature-free law; the truth is shifted by WLF (T_r = -40 C)
     res = t.assign(
         level="between-site",
         model=t["base"],
@@ -179,7 +180,11 @@ def test_recalibrate_temperature_recovers_reference_between_sites():
         section=t["site"].map(sites.set_index("site")["section"]),
     )
     cov, _ = site_covariates(sites, tex)
-    sc = make_scope(res, "between-site")
+    return cov, make_scope(res, "between-site")
+
+
+def test_recalibrate_temperature_recovers_reference_between_sites():
+    cov, sc = _wlf_between_scope()
     train = np.ones(len(sc.sites), bool)
     p = recalibrate(TemperatureShift(), sc, cov, train)
     assert p["t_ref_c"] == pytest.approx(-40.0, abs=1.0)
@@ -352,15 +357,7 @@ def test_the_reference_temperature_keeps_off_the_wlf_pole_at_a_texture_adjusted_
     (it was set from the measured temperatures alone, and the fit raised "WLF undefined" on the bound)."""
     from skidsim.criticism.recalibration import _physical_params, _shift_temperatures
 
-    sites, tex, t = _scope_tables(kappa=None)
-    res = t.assign(
-        level="between-site",
-        model=t["base"],
-        residual=t["measured"] - t["base"],
-        section=t["site"].map(sites.set_index("site")["section"]),
-    )
-    cov, _ = site_covariates(sites, tex)
-    sc = make_scope(res, "between-site")
+    cov, sc = _wlf_between_scope()
     temps = cov.loc[sc.sites, "temperature_c"].to_numpy(float)
     train = np.ones(len(sc.sites), bool)
     held = int(np.argmin(np.abs(temps - 16.0)))
