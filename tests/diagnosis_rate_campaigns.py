@@ -408,8 +408,8 @@ def generate(
     (:func:`beyond_texture_model`), effect_rms_mu: RMS of the
     effect over sites and 20-70 km/h about its campaign mean per speed). ``texture``: a precomputed
     :func:`generator_texture` table (else design :func:`design_of` (``seed``, ``n_designs``) is computed or read
-    from ``cache_dir``). ``trace_from_kmh``: the DFT trace's lowest speed (km/h; 20 by default: none below the
-    simulated speeds; :func:`diagnosis_campaigns.measured_points`); ``temperature_section_c``: the range (deg C) of
+    from ``cache_dir``). ``trace_from_kmh``: the DFT trace's lowest speed (km/h; 20 by default: no trace point below
+    20 km/h; :func:`diagnosis_campaigns.measured_points`); ``temperature_section_c``: the range (deg C) of
     the sections' temperatures (:func:`site_design`)."""
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
