@@ -33,7 +33,8 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
   held_out_sites scope; a within-site cause's scope is held-out speeds, recorded in ``gain_scope``);
 * the physical extension (whole diagnosis only, :func:`physical_record`): the chosen ``extension``, the RMSE gains
   of the physical one and of the generic term in the cause's scope, and for TemperatureShift its ``t_ref_c`` (deg C,
-  all sites) and whether gain.json calls it identified and pinned within 5 deg C, and the verdict of
+  all sites; where the curves are not exponential also ``t_ref_c_stretched``, read with their own stretched form)
+  and whether gain.json calls it identified and pinned within 5 deg C, and the verdict of
   ``curve_shape`` on the measured curves (issue 33, item 3; the rate campaigns' WLF truth is t_ref 20 deg C, C1
   8.86, C2 101.6 K).
 
@@ -112,7 +113,9 @@ def physical_record(gain: dict) -> dict:
     """What a whole diagnosis's gain.json says of the physical extension (issue 33, item 3): the extension chosen,
     the RMSE gains in the cause's own scope of TemperatureShift / DrainageIFI (``physical_gain``) and of the generic
     term (``generic_gain``; mu, NaN where not evaluated), and TemperatureShift's reference temperature fitted on all
-    sites (``t_ref_c``, deg C), whether it is identified and pinned within 5 deg C (``identifiability``) and
+    sites (``t_ref_c``, deg C; ``t_ref_c_stretched``: read with the curves' own stretched form where they are not
+    exponential, gain.json ``stretched_reading``), whether it is identified and pinned within 5 deg C
+    (``identifiability``) and
     whether the measured curves are exponential decays of speed (``curve_shape``), or DrainageIFI's kappa. Empty
     values where the named cause has no physical extension or nothing is named."""
     out = {
@@ -120,6 +123,7 @@ def physical_record(gain: dict) -> dict:
         "physical_gain": float("nan"),
         "generic_gain": float("nan"),
         "t_ref_c": float("nan"),
+        "t_ref_c_stretched": float("nan"),
         "t_ref_identifiable": None,
         "t_ref_pinned": None,
         "kappa": float("nan"),
@@ -136,6 +140,9 @@ def physical_record(gain: dict) -> dict:
         out["t_ref_c"] = float(ident["t_ref_c_all_sites"])
         out["t_ref_identifiable"] = bool(ident["identifiable"])
         out["t_ref_pinned"] = bool(ident.get("t_ref_c_pinned"))
+        stretched = ident.get("stretched_reading")
+        if stretched:
+            out["t_ref_c_stretched"] = float(stretched["t_ref_c"])
         shape = ident.get("curve_shape")
         if shape is not None:
             out["curves_exponential"] = bool(shape["exponential"])

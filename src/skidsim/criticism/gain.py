@@ -314,7 +314,10 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own
         temps = site_values(cov, ext.column, between.sites)
         temps = temps[np.isfinite(temps)]
         precision = t_ref_precision(
-            se, (float(temps.min()), float(temps.max())) if temps.size else None, whole.get("curve_shape")
+            se,
+            (float(temps.min()), float(temps.max())) if temps.size else None,
+            whole.get("curve_shape"),
+            whole.get("stretched_reading"),
         )
         return {
             "extension": "TemperatureShift",
@@ -332,6 +335,7 @@ def physical_identifiability(results, level_scopes: dict, cov: pd.DataFrame, own
             "decay_slope": whole.get("decay_slope"),
             "routes": {r: int(sum(f.get("route") == r for f in folds)) for r in ("curves", "prediction")},
             "curve_shape": whole.get("curve_shape"),
+            "stretched_reading": whole.get("stretched_reading"),
         }
     return None
 
@@ -422,7 +426,9 @@ def drainage_identifiability(
 T_REF_PINNED_C = 5.0
 
 
-def t_ref_precision(se_c: float, temperature_range_c: tuple[float, float] | None, shape: dict | None = None) -> dict:
+def t_ref_precision(
+    se_c: float, temperature_range_c: tuple[float, float] | None, shape: dict | None = None, stretched=None
+) -> dict:
     """How precisely the sections pin the WLF reference temperature: ``t_ref_c_pinned`` is whether the 95 %
     jackknife half-width ``1.96 se_c`` (deg C) is at most :data:`T_REF_PINNED_C`; ``t_ref_c_precision`` says it in
     words, with the sites' temperature range (deg C, min and max; None if unknown). The WLF sensitivity
@@ -430,10 +436,18 @@ def t_ref_precision(se_c: float, temperature_range_c: tuple[float, float] | None
     changes too little for the sites' scatter to pin it: T_r then moves the shift's size, not whether there is
     one (the permutation test of ``identifiable``), so a shift can be identified while its T_r is not pinned.
     ``shape``: :func:`skidsim.criticism.wlf.curve_shape` of the measured curves; where they are not exponential
-    decays of speed, T_r is biased whatever its precision: never pinned, and the sentence says why."""
+    decays of speed, T_r is biased whatever its precision: never pinned, and the sentence says why, with T_r read
+    with the curves' own stretched form where ``stretched`` (:func:`skidsim.criticism.wlf.temperature_identifiability`'s
+    ``stretched_reading``) holds it."""
     out = _t_ref_precision(se_c, temperature_range_c)
     if shape is not None and not shape["exponential"]:
-        out = {"t_ref_c_pinned": False, "t_ref_c_precision": f"{out['t_ref_c_precision']}; {shape['why']}"}
+        text = f"{out['t_ref_c_precision']}; {shape['why']}"
+        if stretched:
+            text += (
+                f"; read with the curves' own form exp(-(alpha s)^{stretched['stretch_exponent']:.2f}) T_r is "
+                f"{stretched['t_ref_c']:.1f} deg C"
+            )
+        out = {"t_ref_c_pinned": False, "t_ref_c_precision": text}
     return out
 
 

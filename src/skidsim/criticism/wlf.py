@@ -32,6 +32,24 @@ NELDER_MEAD = {"xatol": 1e-4, "fatol": 1e-10, "maxfev": 200}
 SHAPE_EXPONENTS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6)
 #: Level of :func:`curve_shape`'s F test: below it the measured curves are not exponential decays of speed.
 SHAPE_LEVEL = 0.01
+#: Tolerance of the exponent :func:`curve_shape` refines between the grid's neighbours where the exponential is
+#: rejected (``stretch_exponent_fit``, the form the WLF shift is then read with).
+SHAPE_EXPONENT_TOL = 0.002
+
+
+def stretched_speeds(V, p: float = 1.0):
+    """Speeds (km/h) at which the stretched exponential ``exp(-(alpha s)^p)`` is the exponential ``exp(-alpha^p
+    s')`` (``s' = s^p``, s = v / 3.6 m/s): ``3.6 (v / 3.6)^p``; ``V`` itself for ``p = 1``. A speed factor k is
+    then the factor ``k^p`` on ``alpha^p``: the stretched form is closed under speed scaling as the exponential is.
+    NaN stays NaN."""
+    V = np.asarray(V, float)
+    return V if p == 1.0 else KMH_PER_MS * (V / KMH_PER_MS) ** p
+
+
+def reading_exponent(shape: dict | None) -> float:
+    """The exponent p of the curves the WLF shift is read from (:func:`wlf_from_curves`): 1 (the exponential
+    decay) unless :func:`curve_shape` rejects the exponential form, then its fitted ``stretch_exponent``."""
+    return 1.0 if shape is None or shape["exponential"] else float(shape["stretch_exponent_fit"])
 
 
 def curve_bc(V: np.ndarray, Y: np.ndarray, alpha: np.ndarray):
@@ -64,6 +82,7 @@ def wlf_from_curves(
     n_perm: int = 0,
     seed: int = 0,
     x: np.ndarray | None = None,
+    stretch: float = 1.0,
 ) -> dict:
     """The WLF reference temperature T_r (deg C) from the sites' measured curves.
 
@@ -81,6 +100,12 @@ def wlf_from_curves(
     which a narrow temperature range pins T_r poorly): ``(c0, g)`` by a grid and Nelder-Mead at each T_r, in the
     model without the WLF term too; ``decay_slope`` is g (None without ``x``).
 
+    ``stretch`` (p, :func:`reading_exponent`): the curves are read as stretched exponentials ``b_i + c_i
+    exp(-(alpha_i s)^p)``, which a speed factor also maps to a factor on ``alpha_i`` (:func:`stretched_speeds`),
+    with the same model of ``log10 alpha_i``; p = 1 is the exponential decay. Read with the wrong form, the decay
+    constants follow a speed shift by less (or more) than its size and T_r is biased (docs/model-criticism.md,
+    section 3, "The curve form T_r is read with").
+
     ``identifiable``: the best T_r lies inside its bounds (at the "no effect" bound the curves show no speed shift)
     and, with ``n_perm > 0``, the WLF term's reduction of the squared error of the model without it
     (``log10 alpha_i = c0``, or ``c0 + g x_i``) is significant at 0.05 against ``n_perm`` permutations of the
@@ -90,9 +115,11 @@ def wlf_from_curves(
     perm_p (None without permutations), identifiable and, when not identifiable, ``why``."""
     T = np.asarray(T, float)
     T0 = float(T.mean())
+    p = float(stretch)
+    V = stretched_speeds(V, p)  # alpha^p on s^p: every log10 alpha below is p log10 alpha of the stretched form
 
     def inner(shift):
-        return _decay_fit(V, Y, shift, x)[:2]
+        return _decay_fit(V, Y, p * shift, x)[:2]
 
     def sse(tr):
         return inner(ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0])[0]
@@ -106,8 +133,8 @@ def wlf_from_curves(
     tr, best = (float(r.x), float(r.fun)) if r.fun <= vals[j] else (float(grid[j]), float(vals[j]))
     null = _decay_fit(V, Y, np.zeros(len(T)), x)  # the model without the WLF term: (sse, c0, g)
     sse0 = null[0]
-    _, c0, g = _decay_fit(V, Y, ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0], x)
-    p = None
+    _, c0, g = _decay_fit(V, Y, p * (ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0]), x)
+    perm_p = None
     if n_perm > 0:
         coarse = np.linspace(lo, hi, 21)
         # the decay slope held at the model without the WLF term (the null model's nuisance), as an offset
@@ -117,25 +144,31 @@ def wlf_from_curves(
         def gain_of(temps):
             t0 = float(temps.mean())
             ref = np.array([t0])
-            return sse_null - min(
-                _decay_fit(V, Y, ext_log10_shift(ext, temps, t_r) - ext_log10_shift(ext, ref, t_r)[0] + offset, None)[0]
-                for t_r in coarse
-            )
+            shifts = (p * (ext_log10_shift(ext, temps, t_r) - ext_log10_shift(ext, ref, t_r)[0]) for t_r in coarse)
+            return sse_null - min(_decay_fit(V, Y, shift + offset, None)[0] for shift in shifts)
 
         rng = np.random.default_rng(seed)
         d_obs = gain_of(T)
         d_perm = np.array([gain_of(rng.permutation(T)) for _ in range(n_perm)])
-        p = float((1 + np.sum(d_perm >= d_obs * (1 - 1e-12))) / (1 + n_perm))
-    out = {"t_ref_c": tr, "log10_alpha_ref": c0, "decay_slope": g, "sse": best, "sse_without": sse0, "perm_p": p}
+        perm_p = float((1 + np.sum(d_perm >= d_obs * (1 - 1e-12))) / (1 + n_perm))
+    out = {
+        "t_ref_c": tr,
+        "log10_alpha_ref": c0 / p,
+        "decay_slope": None if g is None else g / p,
+        "stretch_exponent": p,
+        "sse": best,
+        "sse_without": sse0,
+        "perm_p": perm_p,
+    }
     why = None
     if j == 0 or tr - lo < 1e-3 * (hi - lo):
         why = "the measured curves show no WLF speed shift between sites (T_r at its 'no effect' bound)"
     elif j == len(grid) - 1:
         why = "T_r runs to the WLF pole (the speed shift is steeper than the WLF form allows)"
-    elif p is not None and p > 0.05:
+    elif perm_p is not None and perm_p > 0.05:
         why = (
             f"the decay constants of the measured curves do not follow the WLF shift of temperature beyond chance "
-            f"(permutation p = {p:.2g}, {n_perm} permutations of the temperatures over the sites)"
+            f"(permutation p = {perm_p:.2g}, {n_perm} permutations of the temperatures over the sites)"
         )
     out["identifiable"] = why is None
     if why:
@@ -184,8 +217,10 @@ def curve_shape(V: np.ndarray, Y: np.ndarray, level: float = SHAPE_LEVEL) -> dic
     threshold beside the test: T_r is that sensitive to the form (on stretched curves of exponent 0.9 / 1.1 with a
     WLF shift of T_r 20 deg C at 18-22 deg C, the exponential reading gives T_r about 3 / 30 deg C; docs).
 
-    Returns ``stretch_exponent`` (the best p), ``f_ratio``, ``df``, ``p_value``, ``exponential``, the RMSE (mu) of
-    both forms, and ``why`` (what a T_r read from decay constants is worth on such curves; None when exponential);
+    Returns ``stretch_exponent`` (the best p on the grid), ``stretch_exponent_fit`` (where the exponential is
+    rejected, p refined between the grid's neighbours to :data:`SHAPE_EXPONENT_TOL`; else the grid's), ``f_ratio``,
+    ``df``, ``p_value``, ``exponential``, the RMSE (mu) of both forms (the grid's p), and ``why`` (what a T_r read
+    from decay constants is worth on such curves; None when exponential);
     None with fewer than 2 sites of 4 points or no degree of freedom left."""
     V, Y = np.asarray(V, float), np.asarray(Y, float)
     keep = (np.isfinite(V) & np.isfinite(Y)).sum(axis=1) >= 4
@@ -195,18 +230,27 @@ def curve_shape(V: np.ndarray, Y: np.ndarray, level: float = SHAPE_LEVEL) -> dic
     if n_sites < 2 or df2 < 1:
         return None
     Y = np.where(np.isfinite(V), Y, np.nan)
-    sse = {}
-    for p in SHAPE_EXPONENTS:
-        vp = KMH_PER_MS * (np.where(np.isfinite(V), V, 1.0) / KMH_PER_MS) ** p
+
+    def sse_of(p):
+        vp = stretched_speeds(np.where(np.isfinite(V), V, 1.0), p)
         b, c, a = fit_exp_curves(vp, Y)
         r = exp_curve(vp, b[:, None], c[:, None], a[:, None]) - Y
-        sse[p] = float(np.nansum(r * r))
+        return float(np.nansum(r * r))
+
+    sse = {p: sse_of(p) for p in SHAPE_EXPONENTS}
     best = min(sse, key=sse.get)
     f_ratio = max(sse[1.0] - sse[best], 0.0) / (sse[best] / df2) if sse[best] > 0 else 0.0
     p_value = float(f_dist.sf(f_ratio, 1, df2))
     exponential = bool(p_value > level)
+    p_fit = float(best)
+    if not exponential:  # the exponent the WLF shift is read with (reading_exponent): between the grid's neighbours
+        step = SHAPE_EXPONENTS[1] - SHAPE_EXPONENTS[0]
+        lo_p, hi_p = max(SHAPE_EXPONENTS[0], best - step), min(SHAPE_EXPONENTS[-1], best + step)
+        r = minimize_scalar(sse_of, bounds=(lo_p, hi_p), method="bounded", options={"xatol": SHAPE_EXPONENT_TOL})
+        p_fit = float(r.x) if r.fun <= sse[best] else p_fit
     return {
         "stretch_exponent": float(best),
+        "stretch_exponent_fit": p_fit,
         "f_ratio": float(f_ratio),
         "df": [1, int(df2)],
         "p_value": p_value,
@@ -338,12 +382,19 @@ def wlf_curves(scope: Scope):
 def temperature_identifiability(ext: TemperatureShift, scope: Scope, cov: pd.DataFrame, n_perm: int = 99) -> dict:
     """:func:`wlf_from_curves` on every site of the held-out-site scope with ``n_perm`` permutations of the
     temperatures (gain.json ``identifiability``), and :func:`curve_shape` of the same curves (``curve_shape``);
-    None without measured curves. The curves are :func:`wlf_curves`."""
+    None without measured curves. The curves are :func:`wlf_curves`. Where they are not exponential decays of speed,
+    ``stretched_reading`` holds T_r read with their own stretched form (:func:`reading_exponent`;
+    ``stretch_exponent``, ``t_ref_c`` deg C, ``sse`` mu^2): how far the exponential reading's T_r, which the folds
+    and the prediction use, is moved by the form."""
     curves = wlf_curves(scope)
     if curves is None:
         return None
     T = site_values(cov, ext.column, scope.sites)
     x, _ = decay_covariate(ext, cov, scope.sites)
     out = wlf_from_curves(ext, T, *curves, ext.t_ref_bounds_c(T), n_perm=n_perm, seed=0, x=x)
-    out["curve_shape"] = curve_shape(*curves)
+    shape = out["curve_shape"] = curve_shape(*curves)
+    p = reading_exponent(shape)
+    if p != 1.0:  # the curves' own form: the reading the exponential's bias is measured against
+        read = wlf_from_curves(ext, T, *curves, ext.t_ref_bounds_c(T), x=x, stretch=p)
+        out["stretched_reading"] = {"stretch_exponent": p, "t_ref_c": read["t_ref_c"], "sse": read["sse"]}
     return out
