@@ -56,6 +56,7 @@ def test_temperature_shift_recovers_the_wlf_reference_and_beats_the_generic_term
     assert ident["t_ref_c_all_sites"] == pytest.approx(20.0, abs=5.0)
     half = 1.96 * ident["t_ref_c_jackknife_se"]
     assert ident["curve_shape"]["exponential"]  # the harness's curves are exponential decays: T_r is not biased
+    assert ident["stretched_reading"] is None  # nor read a second time
     assert ident["t_ref_c_pinned"] == (half <= 5.0) and f"+-{half:.1f} deg C" in ident["t_ref_c_precision"]
     temps = tables["sites"]["temperature_c"]
     assert f"{temps.min():.1f}-{temps.max():.1f} deg C" in ident["t_ref_c_precision"]
@@ -167,6 +168,38 @@ def test_the_wlf_shift_is_read_with_the_form_of_stretched_curves():
     plain = wlf_from_curves(ext, T, V, Y, ext.t_ref_bounds_c(T))
     assert wlf_from_curves(ext, T, V, Y, ext.t_ref_bounds_c(T), stretch=1.0) == plain
     assert abs(plain["t_ref_c"] - 20.0) <= 5.0
+
+
+def test_gain_json_reads_t_ref_with_the_form_of_rado_curves_too():
+    """The whole diagnosis of a spectral (Rado) rate campaign with the issue's WLF shift (T_r 20 deg C, sections at
+    8-28 deg C, DFT traces from 5 km/h; seed 0, whose exponential reading is the closest of its 20-seed table at
+    -6.5 deg C): the curves are not exponential, gain.json's ``stretched_reading`` reads T_r with their refined
+    stretched exponent, closer to 20 deg C than the exponential reading, and report.md says it."""
+    import diagnosis_rate_campaigns as rc
+
+    from skidsim.criticism.report import report_markdown
+
+    t, truth = rc.make_rate_campaign(
+        "spectral", "temperature", 0, n_designs=0, trace_from_kmh=5.0, temperature_section_c=(8.0, 28.0)
+    )
+    inputs = cr.DiagnosisInputs(
+        t["sites"],
+        t["measured"],
+        t["simulated"],
+        t["predicted"],
+        t["texture"],
+        prediction_model="physics2-like",
+        prediction_features=t["prediction_features"],
+    )
+    r = cr.diagnose(inputs, DiagnosisOptions(seed=0, n_boot=50))
+    assert r.named is not None and r.named.variable == truth["variable"] == "temperature_c"
+    ident = r.gain["identifiability"]
+    shape, read = ident["curve_shape"], ident["stretched_reading"]
+    assert not shape["exponential"] and read["stretch_exponent"] == shape["stretch_exponent_fit"] < 1.0
+    assert abs(read["t_ref_c"] - 20.0) < abs(ident["t_ref_c_all_sites"] - 20.0)
+    assert not ident["t_ref_c_pinned"] and f"T_r is {read['t_ref_c']:.1f} deg C" in ident["t_ref_c_precision"]
+    clist = [{**c.as_dict(), "rank": k} for k, c in enumerate(r.causes, 1)]
+    assert ident["t_ref_c_precision"] in report_markdown(clist, r.gain, None, ".")
 
 
 def test_a_t_ref_read_from_curves_that_are_not_exponential_is_never_pinned():

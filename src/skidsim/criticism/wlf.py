@@ -48,7 +48,7 @@ def stretched_speeds(V, p: float = 1.0):
 
 def reading_exponent(shape: dict | None) -> float:
     """The exponent p of the curves the WLF shift is read from (:func:`wlf_from_curves`): 1 (the exponential
-    decay) unless :func:`curve_shape` rejects the exponential form, then its fitted ``stretch_exponent``."""
+    decay) unless :func:`curve_shape` rejects the exponential form, then its refined ``stretch_exponent_fit``."""
     return 1.0 if shape is None or shape["exponential"] else float(shape["stretch_exponent_fit"])
 
 
@@ -104,7 +104,7 @@ def wlf_from_curves(
     exp(-(alpha_i s)^p)``, which a speed factor also maps to a factor on ``alpha_i`` (:func:`stretched_speeds`),
     with the same model of ``log10 alpha_i``; p = 1 is the exponential decay. Read with the wrong form, the decay
     constants follow a speed shift by less (or more) than its size and T_r is biased (docs/model-criticism.md,
-    section 3, "The curve form T_r is read with").
+    section 3, "T_r read with the curves' own form").
 
     ``identifiable``: the best T_r lies inside its bounds (at the "no effect" bound the curves show no speed shift)
     and, with ``n_perm > 0``, the WLF term's reduction of the squared error of the model without it
