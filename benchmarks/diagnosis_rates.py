@@ -157,10 +157,10 @@ def run_one(args: tuple) -> dict:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from diagnosis_rate_campaigns import make_rate_campaign, screen_rate_campaign
+    from diagnosis_rate_campaigns import make_rate_campaign, rate_inputs, screen_rate_campaign
 
     from skidsim import criticism as cr
-    from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
+    from skidsim.criticism import DiagnosisOptions
     from skidsim.criticism.causes import MODEL_CATEGORIES
 
     source, kind, seed, n_perm, n_boot, cache, screen_only, beyond, n_designs, overrides, campaign = args
@@ -174,16 +174,7 @@ def run_one(args: tuple) -> dict:
         causes = screen_rate_campaign(t, opts)
         gain, top = {}, cr.named_cause(causes)
     else:
-        inputs = DiagnosisInputs(
-            t["sites"],
-            t["measured"],
-            t["simulated"],
-            t["predicted"],
-            t["texture"],
-            prediction_model="physics2-like",
-            prediction_features=t["prediction_features"],
-        )
-        r = cr.diagnose(inputs, opts)
+        r = cr.diagnose(rate_inputs(t), opts)
         causes, gain, top = r.causes, r.gain, r.named
     sig = [c for c in causes if c.significant]
     latent = source.endswith(SECTION_LATENT)

@@ -513,6 +513,22 @@ def make_rate_campaign(source: str, kind: str, seed: int, **kw):
     return t, truth
 
 
+def rate_inputs(t: dict):
+    """The :class:`skidsim.criticism.DiagnosisInputs` of the tables ``t`` of :func:`make_rate_campaign` (the
+    physics2-like prediction model and its texture features)."""
+    from skidsim.criticism import DiagnosisInputs
+
+    return DiagnosisInputs(
+        t["sites"],
+        t["measured"],
+        t["simulated"],
+        t["predicted"],
+        t["texture"],
+        prediction_model="physics2-like",
+        prediction_features=t["prediction_features"],
+    )
+
+
 def screen_rate_campaign(t: dict, options):
     """The screening of ``skidsim.criticism.diagnose`` on the tables ``t`` of :func:`make_rate_campaign`, without
     the extension and its gain: residuals, the texture model's scores with the prediction features as lead, then

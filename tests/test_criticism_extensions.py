@@ -182,16 +182,7 @@ def test_gain_json_reads_t_ref_with_the_form_of_rado_curves_too():
     t, truth = rc.make_rate_campaign(
         "spectral", "temperature", 0, n_designs=0, trace_from_kmh=5.0, temperature_section_c=(8.0, 28.0)
     )
-    inputs = cr.DiagnosisInputs(
-        t["sites"],
-        t["measured"],
-        t["simulated"],
-        t["predicted"],
-        t["texture"],
-        prediction_model="physics2-like",
-        prediction_features=t["prediction_features"],
-    )
-    r = cr.diagnose(inputs, DiagnosisOptions(seed=0, n_boot=50))
+    r = cr.diagnose(rc.rate_inputs(t), DiagnosisOptions(seed=0, n_boot=50))
     assert r.named is not None and r.named.variable == truth["variable"] == "temperature_c"
     ident = r.gain["identifiability"]
     shape, read = ident["curve_shape"], ident["stretched_reading"]
