@@ -114,15 +114,15 @@ def wlf_from_curves(
     the model without the WLF term). Returns t_ref_c, log10_alpha_ref, decay_slope, sse, sse_without (mu^2),
     perm_p (None without permutations), identifiable and, when not identifiable, ``why``."""
     T = np.asarray(T, float)
-    T0 = float(T.mean())
     p = float(stretch)
     V = stretched_speeds(V, p)  # alpha^p on s^p: every log10 alpha below is p log10 alpha of the stretched form
 
-    def inner(shift):
-        return _decay_fit(V, Y, p * shift, x)[:2]
+    def shift_of(temps, t_r):
+        """p log10 (a_T(T_i) / a_T(mean T)) at T_r = ``t_r``: the WLF term of log10 alpha_i^p."""
+        return p * (ext_log10_shift(ext, temps, t_r) - ext_log10_shift(ext, np.array([float(temps.mean())]), t_r)[0])
 
     def sse(tr):
-        return inner(ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0])[0]
+        return _decay_fit(V, Y, shift_of(T, tr), x)[0]
 
     lo, hi = bounds
     grid = np.linspace(lo, hi, WLF_GRID)
@@ -133,7 +133,7 @@ def wlf_from_curves(
     tr, best = (float(r.x), float(r.fun)) if r.fun <= vals[j] else (float(grid[j]), float(vals[j]))
     null = _decay_fit(V, Y, np.zeros(len(T)), x)  # the model without the WLF term: (sse, c0, g)
     sse0 = null[0]
-    _, c0, g = _decay_fit(V, Y, p * (ext_log10_shift(ext, T, tr) - ext_log10_shift(ext, np.array([T0]), tr)[0]), x)
+    _, c0, g = _decay_fit(V, Y, shift_of(T, tr), x)
     perm_p = None
     if n_perm > 0:
         coarse = np.linspace(lo, hi, 21)
@@ -142,10 +142,7 @@ def wlf_from_curves(
         sse_null = _decay_fit(V, Y, np.zeros(len(T)) + offset, None)[0]
 
         def gain_of(temps):
-            t0 = float(temps.mean())
-            ref = np.array([t0])
-            shifts = (p * (ext_log10_shift(ext, temps, t_r) - ext_log10_shift(ext, ref, t_r)[0]) for t_r in coarse)
-            return sse_null - min(_decay_fit(V, Y, shift + offset, None)[0] for shift in shifts)
+            return sse_null - min(_decay_fit(V, Y, shift_of(temps, t_r) + offset, None)[0] for t_r in coarse)
 
         rng = np.random.default_rng(seed)
         d_obs = gain_of(T)
