@@ -11,6 +11,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -214,9 +215,11 @@ def test_a_t_ref_read_from_curves_that_are_not_exponential_is_never_pinned():
 
 def test_a_within_site_functional_form_says_whether_the_measured_curves_are_exponential():
     """gain.json ``curve_form`` of a within-site functional form (SharedShape): on the harness's exponential curves
-    the reading says the law can follow them (the shared shape is the simulated curve's), in report.md too; on
+    the reading says the law can follow them (the shared shape is the simulated curve's), in report.md too, and
+    with the calibration's record ``by_calibration`` says which sites carry the shape; on
     Rado's curves the reading names the law's form, with the stretched exponent. A between-site functional form gets
     none."""
+    from skidsim.criticism.calibration_groups import calibration_groups
     from skidsim.criticism.extensions import ExtendedModel, SharedShape
     from skidsim.criticism.report import report_markdown
     from skidsim.criticism.wlf import curve_form_reading, curve_shape
@@ -231,6 +234,25 @@ def test_a_within_site_functional_form_says_whether_the_measured_curves_are_expo
     assert "the simulated curve's" in form["reading"]
     report = report_markdown([{**ff.as_dict(), "rank": 1}], gain, None, ".")
     assert f"Form of the measured curves: {form['reading']}." in report
+    assert "by_calibration" not in form and "Which sites carry" not in report  # no calibration record given
+    # with the calibration's record: which sites carry the shape, in gain.json and report.md
+    names = sorted(res["site"].astype(str).unique())
+    record = pd.DataFrame(
+        {
+            "site": names,
+            "flags": ["at_bound" if k % 2 else "" for k in range(len(names))],
+            "at_bound_params": ["mu_s:upper" if k % 2 else "" for k in range(len(names))],
+        }
+    )
+    gain_k, _ = cr.evaluate_extension(
+        ExtendedModel(ff, SharedShape()), res, tables["sites"], tables["texture"], opts, calibration=record
+    )
+    by = gain_k["curve_form"]["by_calibration"]
+    assert by == calibration_groups(res, record, opts.speed_bin_kmh)
+    assert [len(g["sites"]) for g in by["groups"]] == [len(names) // 2, len(names) - len(names) // 2]
+    assert sum(g["share"] for g in by["groups"]) == pytest.approx(1.0, abs=1e-12)
+    report_k = report_markdown([{**ff.as_dict(), "rank": 1}], gain_k, None, ".")
+    assert f"Which sites carry the shape: {by['reading']}." in report_k
     between = Cause("functional_form", "between-site", "functional_form", 0.01, 0.1, 0.01, 0.01, True)
     gain_b, _ = cr.evaluate_extension(
         ExtendedModel(between, SharedShape()), res, tables["sites"], tables["texture"], opts

@@ -128,6 +128,24 @@ def test_read_workflow_inputs(tmp_path):
     paths["best_model"] = tmp_path / "best.txt"
     paths["best_model"].write_text("m1\n")
     inp = read_workflow_inputs(paths, "ours", [20, 40, 60], [50])
+    assert inp.calibration is None  # no identifiability table among the inputs
+    paths["identifiability"] = tmp_path / "identifiability.csv"
+    pd.DataFrame(
+        {
+            "site": ["a", "b", "a"],
+            "method": ["ours", "ours", "study"],
+            "flags": ["at_bound", np.nan, "not_converged"],
+            "at_bound_params": ["mu_s:upper;mu_k:lower", np.nan, "mu_s:upper"],
+        }
+    ).to_csv(paths["identifiability"], index=False)
+    inp = read_workflow_inputs(paths, "ours", [20, 40, 60], [50])
+    assert inp.calibration["site"].tolist() == ["a", "b"]
+    assert inp.calibration["at_bound_params"].iloc[0] == "mu_s:upper;mu_k:lower"
+    assert inp.calibration["flags"].iloc[0] == "at_bound" and pd.isna(inp.calibration["flags"].iloc[1])
+    pd.DataFrame({"site": ["a"], "method": ["ours"], "flags": ["at_bound"]}).to_csv(paths["identifiability"])
+    with pytest.raises(InputError, match="at_bound_params"):
+        read_workflow_inputs(paths, "ours", [20, 40, 60], [50])
+    del paths["identifiability"]
     assert inp.prediction_model == "m1" and inp.prediction_features == ("log(x)", "y")
     assert inp.measured["kind"].tolist() == ["calibration", "validation", "trace"]
     # the predicted law equals the calibrated one here, so the predictions reproduce the simulation

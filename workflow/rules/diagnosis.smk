@@ -12,6 +12,7 @@ checkpoint diagnosis:
         wide=f"{RESULTS}/texture/campaign.parquet",
         params=f"{RESULTS}/calibration/parameters.parquet",
         validation=f"{RESULTS}/calibration/validation.parquet",
+        identifiability=f"{RESULTS}/calibration/identifiability.csv",
         cv_predictions=f"{REG}/cv_predictions.csv",
         best_model=f"{REG}/best_model.txt",
     output:

@@ -165,7 +165,15 @@ def diagnose(
     if term is not None:  # the figures plot the residual against the member's first column (its standardised axis)
         cov = cov.join(pd.Series([r[0] for r in term.design], index=list(term.sites), name=top.variable))
     gain, preds = evaluate_extension(
-        model, res, sites, texture, options, texture_pc_scores=pcs, exclude=roles.exclude, measured=inputs.measured
+        model,
+        res,
+        sites,
+        texture,
+        options,
+        texture_pc_scores=pcs,
+        exclude=roles.exclude,
+        measured=inputs.measured,
+        calibration=inputs.calibration,
     )
     av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
     return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, av, untested)

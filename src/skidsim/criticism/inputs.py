@@ -27,8 +27,10 @@ class DiagnosisInputs:
     """Campaign-level tables of :func:`skidsim.criticism.diagnose`: ``sites`` (site, section, candidate columns),
     ``measured`` (site, speed_kmh, mu, kind in calibration/validation/trace), ``simulated`` (site, speed_kmh, sn:
     the calibrated simulation), ``predicted`` (site, speed_kmh, sn_pred: texture-based predictions of held-out
-    sites, or None), ``texture`` (texture parameters per site, or None) and ``prediction_model`` (the regression
-    model behind ``predicted``, for the record)."""
+    sites, or None), ``texture`` (texture parameters per site, or None), ``prediction_model`` (the regression
+    model behind ``predicted``, for the record) and ``calibration`` (site, flags, at_bound_params: the
+    calibration's record of each site, :func:`calibration_record`; or None), read by
+    :mod:`skidsim.criticism.calibration_groups`."""
 
     sites: pd.DataFrame
     measured: pd.DataFrame
@@ -37,6 +39,7 @@ class DiagnosisInputs:
     texture: pd.DataFrame | None = None
     prediction_model: str | None = None
     prediction_features: tuple[str, ...] = ()
+    calibration: pd.DataFrame | None = None
 
 
 def measured_table(
@@ -106,13 +109,23 @@ def prediction_features(cv_predictions: pd.DataFrame, model: str) -> tuple[str, 
     return tuple(t.strip() for t in best.split("+") if t.strip())
 
 
+def calibration_record(identifiability: pd.DataFrame, method: str, name: str) -> pd.DataFrame:
+    """site, flags (such as ``not_converged``) and at_bound_params (such as ``mu_s:upper``), each joined by ``;``,
+    of ``method``'s rows of the calibration's identifiability table (results/calibration/identifiability.csv,
+    ``name`` its path)."""
+    rows = method_rows(identifiability, method, name)
+    require_columns(rows, ("site", "flags", "at_bound_params"), name)
+    return rows[["site", "flags", "at_bound_params"]].astype({"site": str}).reset_index(drop=True)
+
+
 def read_workflow_inputs(
     paths, method: str, calibration_speeds_kmh: Sequence[float], validation_speeds_kmh: Sequence[float]
 ) -> DiagnosisInputs:
     """The inputs from the workflow's files: ``paths`` maps ingest (sites), dft (points), traces, wide (texture
     table), params (calibration parameters), validation (simulated SN), cv_predictions and best_model (the
-    regression's) to their paths (the diagnosis rule's ``input``); ``method``: the calibration method whose
-    simulation and laws are criticised."""
+    regression's) and, where given, identifiability (the calibration's identifiability table: ``calibration``) to their
+    paths (the diagnosis rule's ``input``); ``method``: the calibration method whose simulation and laws are
+    criticised."""
 
     def path(key):
         try:
@@ -125,6 +138,12 @@ def read_workflow_inputs(
     best = Path(path("best_model")).read_text().strip()
     g = geometric_factors(vt, params)
     cv = pd.read_csv(path("cv_predictions"))
+    has_record = "identifiability" in paths if isinstance(paths, dict) else hasattr(paths, "identifiability")
+    record = (
+        calibration_record(pd.read_csv(path("identifiability")), method, path("identifiability"))
+        if has_record
+        else None
+    )
     return DiagnosisInputs(
         sites=pd.read_parquet(path("ingest")),
         measured=measured_table(
@@ -135,4 +154,5 @@ def read_workflow_inputs(
         texture=pd.read_parquet(path("wide")),
         prediction_model=best,
         prediction_features=prediction_features(cv, best),
+        calibration=record,
     )

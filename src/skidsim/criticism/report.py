@@ -163,6 +163,8 @@ def _named_lines(top: dict | None, gain: dict) -> list[str]:
         lines += [f"WLF reference temperature of TemperatureShift from the measured curves: {state}.", ""]
     if gain.get("curve_form"):
         lines += [f"Form of the measured curves: {gain['curve_form']['reading']}.", ""]
+        if gain["curve_form"].get("by_calibration"):
+            lines += [f"Which sites carry the shape: {gain['curve_form']['by_calibration']['reading']}.", ""]
     own = gain.get("scopes", {}).get(gain.get("scope") or "", {})
     folds = own.get("extension", {}).get("params_per_fold", [])
     if folds and all("form" in f for f in folds):  # DrainageIFI form "auto": the curve form chosen per fold

@@ -1,0 +1,143 @@
+"""Which calibrated sites carry a shape the sites share at held-out speeds.
+
+A within-site functional form on measured curves that are exponential decays of speed (gain.json ``curve_form``,
+:func:`~skidsim.criticism.wlf.curve_form_reading`) is the simulated curve's: the FE's response to the law, or the
+law fitted at the calibration speeds. The calibration's own records (results/calibration/identifiability.csv,
+docs/calibration.md, "Quality and identifiability") tell three groups of sites apart:
+
+* **not settled**: the calibration did not converge, or its best law lies outside the law's family, or the FE did
+  not respond smoothly to the law (flags ``not_converged``, ``outside_law``, ``fe_not_smooth``);
+* **at the upper bound of mu_s**: the law is pinned at the end of its interval (``at_bound_params`` holds
+  ``mu_s:upper``; the study's interval ends at 0.85). A measured curve that extrapolates above it at zero slip speed
+  then gets a simulated curve tilted against it: too low at the lowest speeds, too high at the highest
+  (docs/calibration.md, "The law's reach");
+* **inside the bounds**: the others, whose share is the FE's response to the law between the calibration speeds.
+
+:func:`calibration_groups` gives each group's mean within-site residual (measured minus simulated, mu) per speed bin
+(the site means per bin, averaged over the group's sites) and its share of the shape all sites share: the mean
+profile over the sites ``P`` is the site-weighted sum of the group profiles, ``P(b) = sum_g n_g(b) G_g(b) / n(b)``,
+so the projections ``share_g = sum_b n_g(b)/n(b) G_g(b) P(b) / sum_b P(b)^2`` add up to 1 (a group whose profile
+runs against the shared one has a negative share). The reading names the group of the largest share.
+
+Speeds km/h, friction mu (dimensionless).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+#: The flag of a calibrated law whose ``mu_s`` sits at the upper end of its interval (``at_bound_params``).
+BOUND_FLAG = "mu_s:upper"
+#: Flags of a calibration that did not settle (``flags`` of identifiability.csv).
+UNSETTLED_FLAGS = ("not_converged", "outside_law", "fe_not_smooth")
+#: The groups, in the order a site is assigned (the first that applies), and what each means.
+GROUPS = {
+    "not settled": "the calibration did not settle (not converged, outside the law's family, or the FE not smooth "
+    "in the law)",
+    "at the upper bound of mu_s": "the calibrated mu_s sits at its upper bound",
+    "inside the bounds": "calibrated inside the bounds",
+}
+#: What the group of the largest share says of the shape.
+CONCLUSIONS = {
+    "not settled": "the calibration that did not settle at those sites (identifiability.csv says why, site by site)",
+    "at the upper bound of mu_s": "the law's upper bound on mu_s: a law free to start higher would follow these "
+    "curves more closely (calibration.ours.reach_mu_s_max widens the bound where it costs the fit)",
+    "inside the bounds": "the FE's response to the law between the calibration speeds, at sites the calibration "
+    "fitted inside its bounds",
+}
+
+
+def _split(values: pd.Series) -> pd.Series:
+    return values.fillna("").astype(str).str.split(";")
+
+
+def site_groups(calibration: pd.DataFrame) -> pd.Series:
+    """The group (a key of :data:`GROUPS`) of each site (index) of ``calibration`` (columns site, flags,
+    at_bound_params: flags joined by ``;``)."""
+    flags, bound = _split(calibration["flags"]), _split(calibration["at_bound_params"])
+    unsettled = flags.apply(lambda f: any(x in f for x in UNSETTLED_FLAGS))
+    at_bound = bound.apply(lambda f: BOUND_FLAG in f)
+    names = np.where(unsettled, "not settled", np.where(at_bound, "at the upper bound of mu_s", "inside the bounds"))
+    return pd.Series(names, index=calibration["site"].astype(str).to_numpy())
+
+
+def speed_bins(v: np.ndarray, bin_kmh: float) -> np.ndarray:
+    """Lower edge (km/h) of the ``bin_kmh`` bin of each speed ``v``, bins from the lowest speed, the highest speed
+    closing the last bin."""
+    n_bins = max(1, int(np.ceil((v.max() - v.min()) / bin_kmh - 1e-9)))
+    return v.min() + np.clip(np.floor((v - v.min()) / bin_kmh), 0, n_bins - 1) * bin_kmh
+
+
+def calibration_groups(residuals: pd.DataFrame, calibration: pd.DataFrame, bin_kmh: float = 10.0) -> dict | None:
+    """Each group's within-site residual profile (mu per speed bin of ``bin_kmh`` km/h, :func:`speed_bins`), its
+    sites and its share of the mean profile over the sites (module docstring), and the reading. ``residuals``: the
+    diagnosis's residual table (site, level, speed_kmh, residual); ``calibration``: site, flags, at_bound_params
+    per site (sites it does not list take no part). None without within-site rows of a listed site, with fewer
+    than 2 bins, or where the mean profile is zero."""
+    group = site_groups(calibration)
+    w = residuals[(residuals["level"] == "within-site") & residuals["site"].astype(str).isin(group.index)]
+    if w.empty:
+        return None
+    v = w["speed_kmh"].to_numpy(float)
+    w = w.assign(site=w["site"].astype(str), bin=speed_bins(v, bin_kmh))
+    means = w.groupby(["site", "bin"])["residual"].mean().unstack("bin")
+    if means.shape[1] < 2:
+        return None
+    span = w.groupby("bin")["speed_kmh"].agg(["min", "max"])
+    n_b = means.notna().sum(axis=0).to_numpy(float)  # sites per bin
+    shared = means.mean(axis=0).to_numpy(float)  # P(b)
+    norm = float(np.nansum(shared * shared))
+    if not norm > 0:
+        return None
+    groups = []
+    for name, words in GROUPS.items():
+        sites = [s for s in means.index if group[s] == name]
+        if not sites:
+            continue
+        g = means.loc[sites]
+        profile = g.mean(axis=0).to_numpy(float)  # G_g(b), NaN where none of the group's sites has the bin
+        weight = g.notna().sum(axis=0).to_numpy(float) / n_b
+        share = float(np.nansum(weight * profile * shared) / norm)
+        groups.append(
+            {"group": name, "means": words, "sites": sites, "profile_mu": [float(x) for x in profile], "share": share}
+        )
+    out = {
+        "bin_kmh": float(bin_kmh),
+        "speeds_kmh": [float(b) for b in means.columns],
+        "speed_range_kmh": [[float(span.at[b, "min"]), float(span.at[b, "max"])] for b in means.columns],
+        "shared_profile_mu": [float(x) for x in shared],
+        "groups": groups,
+    }
+    out["reading"] = groups_reading(out)
+    return out
+
+
+def groups_reading(rec: dict) -> str:
+    """The sentence of :func:`calibration_groups`' record ``rec``: the shared profile from its first bin to its
+    last, each group's sites, profile ends and share, and what the group of the largest share says."""
+    r0, r1 = (_speeds(r) for r in (rec["speed_range_kmh"][0], rec["speed_range_kmh"][-1]))
+    p = rec["shared_profile_mu"]
+    n = sum(len(g["sites"]) for g in rec["groups"])
+    parts = [
+        f"{len(g['sites'])} {g['group']} ({_mu(g['profile_mu'][0])} to {_mu(g['profile_mu'][-1])}) {g['share']:.2f}"
+        for g in rec["groups"]
+    ]
+    top = max(rec["groups"], key=lambda g: g["share"])
+    lead = "most of it" if top["share"] > 0.5 else "the largest part"
+    return (
+        f"the mean residual over the {n} sites runs from {_mu(p[0])} mu at {r0} km/h to {_mu(p[-1])} at {r1} km/h; "
+        f"its share by the calibration's record of the sites: {'; '.join(parts)}; {lead} is carried by the sites "
+        f"{top['group']}: {CONCLUSIONS[top['group']]}"
+    )
+
+
+def _speeds(r) -> str:
+    """A bin's speed range (km/h) in words: ``20-29.5``, or one speed."""
+    lo, hi = round(r[0], 1), round(r[1], 1)
+    return f"{lo:g}" if lo == hi else f"{lo:g}-{hi:g}"
+
+
+def _mu(x: float) -> str:
+    """A residual (mu) to 3 decimals with its sign (no negative zero); ``nan`` where a group has no value."""
+    return "nan" if not np.isfinite(x) else f"{round(x, 3) + 0.0:+.3f}"

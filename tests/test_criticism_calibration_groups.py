@@ -1,0 +1,128 @@
+"""Which calibrated sites carry a within-site shape (skidsim.criticism.calibration_groups): the sites whose
+calibration did not settle, those whose mu_s sits at its upper bound, and the others. Residual tables built here
+with known profiles, so each group's profile and share are known exactly. Units: speeds km/h, friction mu.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skidsim.criticism.calibration_groups import calibration_groups, site_groups, speed_bins
+
+SPEEDS = np.r_[np.arange(20.0, 70.0, 2.5), 70.0]  # a trace every 2.5 km/h up to 70 km/h
+
+
+def residual_table(profiles: dict) -> pd.DataFrame:
+    """Within-site rows of sites whose residual at speed v is ``profiles[site](v)``, and between-site rows that
+    must be ignored."""
+    rows = []
+    for site, f in profiles.items():
+        for v in SPEEDS:
+            rows.append({"site": site, "level": "within-site", "speed_kmh": v, "residual": f(v)})
+            rows.append({"site": site, "level": "between-site", "speed_kmh": v, "residual": 1.0})
+    return pd.DataFrame(rows)
+
+
+def falling(v):
+    """The tilt of a law pinned at its upper bound: +0.0125 mu at 20 km/h, falling 0.0005 mu per km/h."""
+    return 0.0125 - 0.0005 * (v - 20.0)
+
+
+def flat(v):
+    return 0.0
+
+
+BOUND = ["a1", "a2", "a3", "a4"]
+UNSETTLED = ["u1", "u2"]
+INSIDE = ["b1", "b2", "b3", "b4", "b5", "b6"]
+
+
+def record() -> pd.DataFrame:
+    """The calibration's record: 4 sites at the upper bound of mu_s (one also at mu_k's lower bound), 2 not settled
+    (one of them also at the bound: not settled comes first), 6 inside the bounds (one at mu_k's lower bound)."""
+    return pd.DataFrame(
+        {
+            "site": BOUND + UNSETTLED + INSIDE,
+            "flags": ["at_bound"] * 4
+            + ["at_bound;not_converged", "outside_law;fit_beyond_noise"]
+            + [np.nan] * 5
+            + ["at_bound"],
+            "at_bound_params": ["mu_s:upper", "mu_s:upper;mu_k:lower", "mu_s:upper", "mu_s:upper", "mu_s:upper", np.nan]
+            + [np.nan] * 5
+            + ["mu_k:lower"],
+        }
+    )
+
+
+def test_each_site_goes_to_the_first_group_that_applies():
+    g = site_groups(record())
+    assert g[BOUND].eq("at the upper bound of mu_s").all()
+    assert g[UNSETTLED].eq("not settled").all()
+    assert g[INSIDE].eq("inside the bounds").all()
+
+
+def test_the_shares_split_the_mean_profile_among_the_groups():
+    """The sites at the bound fall with speed, the others are flat: the bound group's profile is the line's value
+    at each bin's mean speed (70 km/h closes the last bin) and it carries the whole shared shape (share 1, the
+    others 0); with the unsettled sites falling twice as steeply, the shares follow the sites' weights in the mean
+    profile (4 x 1 against 2 x 2: 0.5 each), and they always add up to 1."""
+    res = residual_table({**dict.fromkeys(BOUND, falling), **dict.fromkeys(UNSETTLED + INSIDE, flat)})
+    rec = calibration_groups(res, record())
+    assert rec["speeds_kmh"] == [20.0, 30.0, 40.0, 50.0, 60.0]
+    assert rec["speed_range_kmh"][0] == [20.0, 27.5] and rec["speed_range_kmh"][-1] == [60.0, 70.0]
+    centres = [np.mean(SPEEDS[(SPEEDS >= lo) & (SPEEDS <= hi)]) for lo, hi in rec["speed_range_kmh"]]
+    by = {g["group"]: g for g in rec["groups"]}
+    assert np.allclose(by["at the upper bound of mu_s"]["profile_mu"], [falling(c) for c in centres], atol=1e-15)
+    assert np.allclose(rec["shared_profile_mu"], [4 / 12 * falling(c) for c in centres], atol=1e-15)
+    assert by["at the upper bound of mu_s"]["share"] == pytest.approx(1.0, abs=1e-12)
+    assert by["not settled"]["share"] == 0.0 and by["inside the bounds"]["share"] == 0.0
+    assert by["not settled"]["sites"] == UNSETTLED
+    assert "most of it is carried by the sites at the upper bound of mu_s: the law's upper bound" in rec["reading"]
+    assert "4 at the upper bound of mu_s (+0.011 to -0.010) 1.00" in rec["reading"]
+
+    steep = residual_table(
+        {
+            **dict.fromkeys(BOUND, falling),
+            **{s: (lambda v: 2 * falling(v)) for s in UNSETTLED},
+            **dict.fromkeys(INSIDE, flat),
+        }
+    )
+    rec = calibration_groups(steep, record())
+    shares = {g["group"]: g["share"] for g in rec["groups"]}
+    assert shares["at the upper bound of mu_s"] == pytest.approx(0.5, abs=1e-12)
+    assert shares["not settled"] == pytest.approx(0.5, abs=1e-12)
+    assert sum(shares.values()) == pytest.approx(1.0, abs=1e-12)
+    assert "the largest part is carried by the sites" in rec["reading"]
+
+
+def test_a_shape_of_the_well_calibrated_sites_is_the_fe_response():
+    """The fall at the sites inside the bounds only: they carry it, and the reading says it is the FE's response to
+    the law; a group running against the shared shape has a negative share."""
+    res = residual_table(
+        {
+            **{s: (lambda v: -0.5 * falling(v)) for s in BOUND},
+            **dict.fromkeys(UNSETTLED, flat),
+            **dict.fromkeys(INSIDE, falling),
+        }
+    )
+    rec = calibration_groups(res, record())
+    shares = {g["group"]: g["share"] for g in rec["groups"]}
+    assert shares["at the upper bound of mu_s"] < 0 < shares["inside the bounds"]
+    assert sum(shares.values()) == pytest.approx(1.0, abs=1e-12)
+    assert rec["reading"].endswith(
+        "the FE's response to the law between the calibration speeds, at sites the calibration fitted inside its bounds"
+    )
+
+
+def test_no_reading_without_within_site_rows_of_recorded_sites_or_a_shape():
+    res = residual_table(dict.fromkeys(BOUND, falling))
+    assert calibration_groups(res[res["level"] == "between-site"], record()) is None
+    assert calibration_groups(res, record().iloc[4:]) is None  # none of the residual's sites in the record
+    assert calibration_groups(residual_table(dict.fromkeys(BOUND, flat)), record()) is None  # no shape to share
+
+
+def test_speed_bins_close_the_last_bin_with_the_top_speed():
+    assert speed_bins(np.array([20.0, 29.9, 30.0, 69.9, 70.0]), 10.0).tolist() == [20.0, 20.0, 30.0, 60.0, 60.0]
+    assert speed_bins(np.array([5.0, 5.0]), 10.0).tolist() == [5.0, 5.0]
