@@ -9,19 +9,19 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from skidsim.criticism.calibration_groups import calibration_groups, site_groups, speed_bins
+from skidsim.criticism.calibration_groups import GROUPS, calibration_groups, site_groups, speed_bins
 
 SPEEDS = np.r_[np.arange(20.0, 70.0, 2.5), 70.0]  # a trace every 2.5 km/h up to 70 km/h
 
 
 def residual_table(profiles: dict) -> pd.DataFrame:
-    """Within-site rows of sites whose residual at speed v is ``profiles[site](v)``, and between-site rows that
-    must be ignored."""
+    """Within-site rows of sites (each its own section) whose residual at speed v is ``profiles[site](v)``, and
+    between-site rows that must be ignored."""
     rows = []
     for site, f in profiles.items():
         for v in SPEEDS:
-            rows.append({"site": site, "level": "within-site", "speed_kmh": v, "residual": f(v)})
-            rows.append({"site": site, "level": "between-site", "speed_kmh": v, "residual": 1.0})
+            rows.append({"site": site, "section": site, "level": "within-site", "speed_kmh": v, "residual": f(v)})
+            rows.append({"site": site, "section": site, "level": "between-site", "speed_kmh": v, "residual": 1.0})
     return pd.DataFrame(rows)
 
 
@@ -65,36 +65,51 @@ def test_each_site_goes_to_the_first_group_that_applies():
 
 def test_the_shares_split_the_mean_profile_among_the_groups():
     """The sites at the bound fall with speed, the others are flat: the bound group's profile is the line's value
-    at each bin's mean speed (70 km/h closes the last bin) and it carries the whole shared shape (share 1, the
-    others 0); with the unsettled sites falling twice as steeply, the shares follow the sites' weights in the mean
-    profile (4 x 1 against 2 x 2: 0.5 each), and they always add up to 1."""
+    at each bin's mean speed (70 km/h closes the last bin) less its mean over the bins (centred, as the functional
+    form's test), and it carries the whole shared shape (share 1, the others 0). Its own permutation p is the
+    chance that random signs of its 4 sections' profiles all agree, 2 / 2^4; a flat group's p is 1. With the
+    unsettled sites falling 1.5 times as steeply, the shares follow the sites' weights in the mean profile (4 x 1
+    against 2 x 1.5), and with every group falling the largest share below a half is "the largest part"; the
+    shares always add up to 1."""
     res = residual_table({**dict.fromkeys(BOUND, falling), **dict.fromkeys(UNSETTLED + INSIDE, flat)})
-    rec = calibration_groups(res, record())
+    rec = calibration_groups(res, record(), n_perm=999, seed=3)
     assert rec["speeds_kmh"] == [20.0, 30.0, 40.0, 50.0, 60.0]
     assert rec["speed_range_kmh"][0] == [20.0, 27.5] and rec["speed_range_kmh"][-1] == [60.0, 70.0]
-    centres = [np.mean(SPEEDS[(SPEEDS >= lo) & (SPEEDS <= hi)]) for lo, hi in rec["speed_range_kmh"]]
+    centres = np.array([np.mean(SPEEDS[(SPEEDS >= lo) & (SPEEDS <= hi)]) for lo, hi in rec["speed_range_kmh"]])
+    line = falling(centres) - falling(centres).mean()
     by = {g["group"]: g for g in rec["groups"]}
-    assert np.allclose(by["at the upper bound of mu_s"]["profile_mu"], [falling(c) for c in centres], atol=1e-15)
-    assert np.allclose(rec["shared_profile_mu"], [4 / 12 * falling(c) for c in centres], atol=1e-15)
+    assert np.allclose(by["at the upper bound of mu_s"]["profile_mu"], line, atol=1e-15)
+    assert np.allclose(rec["shared_profile_mu"], 4 / 12 * line, atol=1e-15)
     assert by["at the upper bound of mu_s"]["share"] == pytest.approx(1.0, abs=1e-12)
     assert by["not settled"]["share"] == 0.0 and by["inside the bounds"]["share"] == 0.0
+    assert by["at the upper bound of mu_s"]["p_alone"] == pytest.approx(2 / 16, abs=0.04)
+    assert by["not settled"]["p_alone"] == 1.0 and by["inside the bounds"]["p_alone"] == 1.0
     assert by["not settled"]["sites"] == UNSETTLED
     assert "most of it is carried by the sites at the upper bound of mu_s: the law's upper bound" in rec["reading"]
-    assert "4 at the upper bound of mu_s (+0.011 to -0.010) 1.00" in rec["reading"]
+    assert "4 at the upper bound of mu_s (+0.010 to -0.01" in rec["reading"]  # the profile's ends, 3 decimals
+    assert "share 1.00, alone p 0.1" in rec["reading"]
 
     steep = residual_table(
         {
             **dict.fromkeys(BOUND, falling),
-            **{s: (lambda v: 2 * falling(v)) for s in UNSETTLED},
+            **{s: (lambda v: 1.5 * falling(v)) for s in UNSETTLED},
             **dict.fromkeys(INSIDE, flat),
         }
     )
-    rec = calibration_groups(steep, record())
-    shares = {g["group"]: g["share"] for g in rec["groups"]}
-    assert shares["at the upper bound of mu_s"] == pytest.approx(0.5, abs=1e-12)
-    assert shares["not settled"] == pytest.approx(0.5, abs=1e-12)
+    shares = {g["group"]: g["share"] for g in calibration_groups(steep, record())["groups"]}
+    assert shares["at the upper bound of mu_s"] == pytest.approx(4 / 7, abs=1e-12)
+    assert shares["not settled"] == pytest.approx(3 / 7, abs=1e-12)
     assert sum(shares.values()) == pytest.approx(1.0, abs=1e-12)
-    assert "the largest part is carried by the sites" in rec["reading"]
+    spread = residual_table(
+        {
+            **dict.fromkeys(BOUND + UNSETTLED, falling),
+            **{s: (lambda v: 0.5 * falling(v)) for s in INSIDE},
+        }
+    )
+    rec = calibration_groups(spread, record())
+    shares = {g["group"]: g["share"] for g in rec["groups"]}
+    assert [shares[k] for k in GROUPS] == pytest.approx([2 / 9, 4 / 9, 3 / 9], abs=1e-12)
+    assert "the largest part is carried by the sites at the upper bound of mu_s" in rec["reading"]
 
 
 def test_a_shape_of_the_well_calibrated_sites_is_the_fe_response():

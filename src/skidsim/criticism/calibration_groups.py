@@ -13,11 +13,15 @@ docs/calibration.md, "Quality and identifiability") tell three groups of sites a
   (docs/calibration.md, "The law's reach");
 * **inside the bounds**: the others, whose share is the FE's response to the law between the calibration speeds.
 
-:func:`calibration_groups` gives each group's mean within-site residual (measured minus simulated, mu) per speed bin
-(the site means per bin, averaged over the group's sites) and its share of the shape all sites share: the mean
-profile over the sites ``P`` is the site-weighted sum of the group profiles, ``P(b) = sum_g n_g(b) G_g(b) / n(b)``,
-so the projections ``share_g = sum_b n_g(b)/n(b) G_g(b) P(b) / sum_b P(b)^2`` add up to 1 (a group whose profile
-runs against the shared one has a negative share). The reading names the group of the largest share.
+:func:`calibration_groups` works on each site's centred residual profile, as the functional form's test does
+(:func:`~skidsim.criticism.screening.functional_form_test`): the site's mean within-site residual (measured minus
+simulated, mu) per speed bin minus its mean over the bins. Each group's profile ``G_g`` is the mean of its sites'
+profiles, and its share of the shape all sites share follows from the mean profile over all sites ``P``, the
+site-weighted sum of the group profiles, ``P(b) = sum_g n_g G_g(b) / n``: the projections ``share_g = (n_g / n)
+sum_b G_g(b) P(b) / sum_b P(b)^2`` add up to 1 (a group whose profile runs against the shared one has a negative
+share). Each group is also tested alone by the functional form's statistic, ``T = n_g sum_b G_g(b)^2`` against
+random sign flips of whole sections' profiles (``p_alone``): whether its sites alone share a shape. The reading
+names the group of the largest share.
 
 Speeds km/h, friction mu (dimensionless).
 """
@@ -69,44 +73,67 @@ def speed_bins(v: np.ndarray, bin_kmh: float) -> np.ndarray:
     return v.min() + np.clip(np.floor((v - v.min()) / bin_kmh), 0, n_bins - 1) * bin_kmh
 
 
-def calibration_groups(residuals: pd.DataFrame, calibration: pd.DataFrame, bin_kmh: float = 10.0) -> dict | None:
-    """Each group's within-site residual profile (mu per speed bin of ``bin_kmh`` km/h, :func:`speed_bins`), its
-    sites and its share of the mean profile over the sites (module docstring), and the reading. ``residuals``: the
-    diagnosis's residual table (site, level, speed_kmh, residual); ``calibration``: site, flags, at_bound_params
-    per site (sites it does not list take no part). None without within-site rows of a listed site, with fewer
-    than 2 bins, or where the mean profile is zero."""
+def shape_p_value(D: np.ndarray, sections: np.ndarray, n_perm: int, rng) -> float:
+    """Permutation p of the mean shape of the centred profiles ``D`` (sites x bins): ``T = n sum_b (mean_i
+    D_ib)^2`` against ``n_perm`` random sign flips of whole sections' profiles (``sections`` per site), ``(1 + #{T*
+    >= T}) / (n_perm + 1)``."""
+    n = D.shape[0]
+    t = n * float((D.mean(axis=0) ** 2).sum())
+    sec = np.unique(sections, return_inverse=True)[1]
+    flips = rng.choice(np.array([-1.0, 1.0]), size=(n_perm, int(sec.max()) + 1))[:, sec]
+    tp = ((flips @ D) ** 2).sum(axis=1) / n
+    return float((1 + np.count_nonzero(tp >= t * (1 - 1e-12))) / (n_perm + 1))
+
+
+def calibration_groups(
+    residuals: pd.DataFrame, calibration: pd.DataFrame, bin_kmh: float = 10.0, n_perm: int = 999, seed: int = 11
+) -> dict | None:
+    """Each group's centred within-site residual profile (mu per speed bin of ``bin_kmh`` km/h, :func:`speed_bins`),
+    its sites, its share of the mean profile over the sites and its own permutation p (``n_perm`` sign flips drawn
+    from ``seed``) (module docstring), and the reading. ``residuals``: the diagnosis's residual table (site,
+    section, level, speed_kmh, residual); ``calibration``: site, flags, at_bound_params per site (sites it does not
+    list take no part). None without within-site rows of a listed site, with fewer than 2 bins, or where the mean
+    profile is zero. Sites without a value in every bin take no part."""
     group = site_groups(calibration)
     w = residuals[(residuals["level"] == "within-site") & residuals["site"].astype(str).isin(group.index)]
     if w.empty:
         return None
     v = w["speed_kmh"].to_numpy(float)
     w = w.assign(site=w["site"].astype(str), bin=speed_bins(v, bin_kmh))
-    means = w.groupby(["site", "bin"])["residual"].mean().unstack("bin")
-    if means.shape[1] < 2:
+    means = w.groupby(["site", "bin"])["residual"].mean().unstack("bin").dropna()
+    if means.shape[1] < 2 or means.empty:
         return None
+    section = w.groupby("site")["section"].first().astype(str)
     span = w.groupby("bin")["speed_kmh"].agg(["min", "max"])
-    n_b = means.notna().sum(axis=0).to_numpy(float)  # sites per bin
-    shared = means.mean(axis=0).to_numpy(float)  # P(b)
-    norm = float(np.nansum(shared * shared))
+    D = means.sub(means.mean(axis=1), axis=0)  # centred profiles, as the functional form's test
+    shared = D.mean(axis=0).to_numpy(float)  # P(b)
+    norm = float((shared * shared).sum())
     if not norm > 0:
         return None
+    rng = np.random.default_rng(seed)
     groups = []
     for name, words in GROUPS.items():
-        sites = [s for s in means.index if group[s] == name]
+        sites = [s for s in D.index if group[s] == name]
         if not sites:
             continue
-        g = means.loc[sites]
-        profile = g.mean(axis=0).to_numpy(float)  # G_g(b), NaN where none of the group's sites has the bin
-        weight = g.notna().sum(axis=0).to_numpy(float) / n_b
-        share = float(np.nansum(weight * profile * shared) / norm)
+        g = D.loc[sites].to_numpy(float)
+        profile = g.mean(axis=0)
         groups.append(
-            {"group": name, "means": words, "sites": sites, "profile_mu": [float(x) for x in profile], "share": share}
+            {
+                "group": name,
+                "means": words,
+                "sites": sites,
+                "profile_mu": [float(x) for x in profile],
+                "share": float(len(sites) / len(D) * (profile @ shared) / norm),
+                "p_alone": shape_p_value(g, section.loc[sites].to_numpy(), n_perm, rng),
+            }
         )
     out = {
         "bin_kmh": float(bin_kmh),
-        "speeds_kmh": [float(b) for b in means.columns],
-        "speed_range_kmh": [[float(span.at[b, "min"]), float(span.at[b, "max"])] for b in means.columns],
+        "speeds_kmh": [float(b) for b in D.columns],
+        "speed_range_kmh": [[float(span.at[b, "min"]), float(span.at[b, "max"])] for b in D.columns],
         "shared_profile_mu": [float(x) for x in shared],
+        "n_permutations": int(n_perm),
         "groups": groups,
     }
     out["reading"] = groups_reading(out)
@@ -115,18 +142,20 @@ def calibration_groups(residuals: pd.DataFrame, calibration: pd.DataFrame, bin_k
 
 def groups_reading(rec: dict) -> str:
     """The sentence of :func:`calibration_groups`' record ``rec``: the shared profile from its first bin to its
-    last, each group's sites, profile ends and share, and what the group of the largest share says."""
+    last, each group's sites, profile ends, share and own p, and what the group of the largest share says."""
     r0, r1 = (_speeds(r) for r in (rec["speed_range_kmh"][0], rec["speed_range_kmh"][-1]))
     p = rec["shared_profile_mu"]
     n = sum(len(g["sites"]) for g in rec["groups"])
     parts = [
-        f"{len(g['sites'])} {g['group']} ({_mu(g['profile_mu'][0])} to {_mu(g['profile_mu'][-1])}) {g['share']:.2f}"
+        f"{len(g['sites'])} {g['group']} ({_mu(g['profile_mu'][0])} to {_mu(g['profile_mu'][-1])}) share "
+        f"{g['share']:.2f}, alone p {g['p_alone']:.2g}"
         for g in rec["groups"]
     ]
     top = max(rec["groups"], key=lambda g: g["share"])
     lead = "most of it" if top["share"] > 0.5 else "the largest part"
     return (
-        f"the mean residual over the {n} sites runs from {_mu(p[0])} mu at {r0} km/h to {_mu(p[-1])} at {r1} km/h; "
+        f"the mean centred residual over the {n} sites runs from {_mu(p[0])} mu at {r0} km/h to {_mu(p[-1])} at {r1} "
+        "km/h; "
         f"its share by the calibration's record of the sites: {'; '.join(parts)}; {lead} is carried by the sites "
         f"{top['group']}: {CONCLUSIONS[top['group']]}"
     )

@@ -273,7 +273,9 @@ def evaluate_extension(
         form = measured_curve_form(level_scopes)
         if form is not None:
             if calibration is not None and form["curve_shape"]["exponential"]:
-                groups = calibration_groups(residuals, calibration, options.speed_bin_kmh)
+                groups = calibration_groups(
+                    residuals, calibration, options.speed_bin_kmh, options.n_permutations or 999, options.seed
+                )
                 if groups is not None:
                     form["by_calibration"] = groups
             gain["curve_form"] = form
