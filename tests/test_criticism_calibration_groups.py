@@ -141,3 +141,74 @@ def test_no_reading_without_within_site_rows_of_recorded_sites_or_a_shape():
 def test_speed_bins_close_the_last_bin_with_the_top_speed():
     assert speed_bins(np.array([20.0, 29.9, 30.0, 69.9, 70.0]), 10.0).tolist() == [20.0, 20.0, 30.0, 60.0, 60.0]
     assert speed_bins(np.array([5.0, 5.0]), 10.0).tolist() == [5.0, 5.0]
+
+
+def pinned_campaign(seed: int = 5):
+    """36 sites in 12 sections whose measured curves are exponential decays of speed; the calibrated simulation
+    follows them at 18 sites and is tilted against them at the other 18, whose calibrated mu_s sits at its upper
+    bound (too low at 20 km/h, too high at 70: +0.02 to -0.02 mu). Texture columns of noise; the texture-based
+    predictions equal the truth. Returns the diagnosis inputs with the calibration's record."""
+    from skidsim.criticism import DiagnosisInputs
+
+    rng = np.random.default_rng(seed)
+    n = 36
+    site = [f"s{i:02d}" for i in range(n)]
+    sites = pd.DataFrame({"site": site, "section": np.repeat([f"S{k:02d}" for k in range(12)], 3)})
+    pinned = np.zeros(n, dtype=bool)
+    pinned[rng.permutation(n)[:18]] = True
+    v = np.arange(20.0, 70.1, 2.5)
+    rows_m, rows_s, rows_p = [], [], []
+    for i, s in enumerate(site):
+        truth = 0.35 + 0.45 * np.exp(-rng.uniform(0.010, 0.025) * v)
+        sim = truth - (0.02 - 0.0008 * (v - 20.0)) * pinned[i]
+        kind = np.where(
+            np.isin(v, [20.0, 40.0, 60.0]),
+            "calibration",
+            np.where(np.isin(v, [30.0, 50.0, 70.0]), "validation", "trace"),
+        )
+        mu = truth + rng.normal(0.0, 0.004, v.size)
+        rows_m += [dict(site=s, speed_kmh=a, mu=b, kind=k) for a, b, k in zip(v, mu, kind)]
+        rows_s += [dict(site=s, speed_kmh=a, sn=b) for a, b in zip(v, sim)]
+        rows_p += [dict(site=s, speed_kmh=a, sn_pred=b) for a, b in zip(v, sim)]
+    wide = pd.DataFrame({"site": site, **{f"macro_P{j}": rng.normal(size=n) for j in range(3)}})
+    record = pd.DataFrame(
+        {
+            "site": site,
+            "flags": np.where(pinned, "at_bound", ""),
+            "at_bound_params": np.where(pinned, "mu_s:upper", ""),
+        }
+    )
+    inputs = DiagnosisInputs(
+        sites, pd.DataFrame(rows_m), pd.DataFrame(rows_s), pd.DataFrame(rows_p), wide, calibration=record
+    )
+    return inputs, sorted(np.array(site)[pinned])
+
+
+def test_the_within_site_level_of_the_settled_sites_leaves_out_the_pinned_laws():
+    """With every site, the tilt of the pinned laws is named as the within-site functional form, and gain.json's
+    ``by_calibration`` gives the sites at the bound the whole shape. With ``within_site_sites: settled`` their
+    within-site rows are left out (gain.json ``within_site_left_out`` and report.md say which), the between-site
+    rows all stay, and the settled sites share no shape: no within-site cause is named."""
+    from skidsim import criticism as cr
+    from skidsim.criticism import DiagnosisOptions
+    from skidsim.criticism.calibration_groups import settled_residuals
+    from skidsim.criticism.report import report_markdown
+
+    inputs, pinned = pinned_campaign()
+    every = cr.diagnose(inputs, DiagnosisOptions(seed=2, n_boot=100, within_site_sites="all"))
+    assert every.named is not None and every.named.variable == "functional_form"
+    assert every.named.level == "within-site"
+    groups = {g["group"]: g for g in every.gain["curve_form"]["by_calibration"]["groups"]}
+    assert groups["at the upper bound of mu_s"]["sites"] == pinned
+    assert groups["at the upper bound of mu_s"]["share"] > 0.9 and "within_site_left_out" not in every.gain
+
+    settled = cr.diagnose(inputs, DiagnosisOptions(seed=2, n_boot=100, within_site_sites="settled"))
+    assert settled.gain["within_site_left_out"] == {"at the upper bound of mu_s": pinned}
+    within = settled.residuals[settled.residuals["level"] == "within-site"]
+    assert set(within["site"]) == set(inputs.sites["site"]) - set(pinned)
+    assert (settled.residuals["level"] == "between-site").sum() == (every.residuals["level"] == "between-site").sum()
+    assert not any(c.significant and c.level == "within-site" for c in settled.causes), settled.causes[:3]
+    report = report_markdown([], settled.gain, None, ".")
+    assert "Within-site tests on the sites the calibration settled inside its bounds; left out: 18 where the " in report
+    kept, left = settled_residuals(every.residuals, inputs.calibration)
+    assert left == {"at the upper bound of mu_s": pinned} and len(kept) == len(settled.residuals)

@@ -39,6 +39,8 @@ def test_options_reject_unknown_keys_and_bad_values():
         DiagnosisOptions(fdr_method="holm")
     with pytest.raises(ConfigError, match="fe_extension"):
         DiagnosisOptions(fe_extension="sometimes")
+    with pytest.raises(ConfigError, match=r"diagnosis.within_site_sites: expected one of \('all', 'settled'\)"):
+        DiagnosisOptions(within_site_sites="flagged")
 
 
 def test_measured_table_kinds():

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from .adjustment import added_variable, texture_model_scores
+from .calibration_groups import settled_residuals
 from .causes import CATEGORIES, MISFIT_CORRELATE, SECTION_UNEXPLAINED, TEXTURE_MISFIT, Cause
 from .covariates import (
     DEFAULT_EXCLUDE,
@@ -44,7 +45,7 @@ from .covariates import (
 )
 from .extensions import CovariateTerm, ExtendedModel, apply_extension
 from .fdr import adjust_pvalues, auto_permutations
-from .gain import baseline_gain, evaluate_extension, measure_gain
+from .gain import add_calibration_groups, baseline_gain, evaluate_extension, measure_gain
 from .inputs import DiagnosisInputs, read_workflow_inputs
 from .options import DiagnosisOptions
 from .ranking import named_cause
@@ -142,21 +143,32 @@ def diagnose(
     options = DiagnosisOptions() if options is None else options
     roles = CandidateRoles() if roles is None else roles
     sites, texture, bin_kmh = inputs.sites, inputs.texture, options.speed_bin_kmh
-    res = build_residuals(sites, inputs.measured, inputs.simulated, inputs.predicted)
+    res_all = build_residuals(sites, inputs.measured, inputs.simulated, inputs.predicted)
+    res, left_out = res_all, None
+    if options.within_site_sites == "settled" and inputs.calibration is not None:
+        res, left_out = settled_residuals(res_all, inputs.calibration)
+    record = {} if left_out is None else {"within_site_left_out": left_out}
     # one texture model (the prediction model's columns when they predict better, then PCs) for all steps
     pcs, texture_model = texture_model_scores(
         res, sites, texture, bin_kmh, roles.exclude, lead=inputs.prediction_features
     )
     texture_model = {"prediction_model": inputs.prediction_model, **texture_model}
     causes = screen_candidates(
-        res, sites, texture, options, roles, texture_pc_scores=pcs, texture_lead=inputs.prediction_features
+        res,
+        sites,
+        texture,
+        options,
+        roles,
+        texture_pc_scores=pcs,
+        texture_lead=inputs.prediction_features,
+        shape_residuals=res_all,
     )
     top = named_cause(causes)
     cov, _ = site_covariates(sites, texture, exclude=roles.exclude)
     untested = untested_columns(sites, texture, exclude=roles.exclude)
     if top is None:
         gain, preds = baseline_gain(res, options)
-        gain = {**gain, "texture_model": texture_model}
+        gain = {**gain, "texture_model": texture_model, **record}
         return DiagnosisResult(res, causes, top, gain, preds, cov, pd.DataFrame(), untested)
     term = texture_model_term(top, res, sites, texture, pcs, inputs.prediction_features, roles, bin_kmh)
     model = apply_extension(top, sites, texture, speed_bin_kmh=bin_kmh, exclude=roles.exclude, texture_design=term)
@@ -173,7 +185,10 @@ def diagnose(
         texture_pc_scores=pcs,
         exclude=roles.exclude,
         measured=inputs.measured,
-        calibration=inputs.calibration,
+        calibration=inputs.calibration if left_out is None else None,
     )
+    if left_out is not None and "curve_form" in gain:  # which sites carry the shape: every site, tested or not
+        add_calibration_groups(gain["curve_form"], res_all, inputs.calibration, options)
     av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
-    return DiagnosisResult(res, causes, top, {**gain, "texture_model": texture_model}, preds, cov, av, untested)
+    gain = {**gain, "texture_model": texture_model, **record}
+    return DiagnosisResult(res, causes, top, gain, preds, cov, av, untested)

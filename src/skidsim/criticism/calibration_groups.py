@@ -66,6 +66,23 @@ def site_groups(calibration: pd.DataFrame) -> pd.Series:
     return pd.Series(names, index=calibration["site"].astype(str).to_numpy())
 
 
+def settled_residuals(residuals: pd.DataFrame, calibration: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
+    """``residuals`` without the within-site rows of the sites whose calibration did not settle or whose ``mu_s``
+    sits at its upper bound (:func:`site_groups`; sites ``calibration`` does not list stay), and those sites per
+    group ({group: [sites]}, the groups with any). The between-site rows all stay: they compare the measured
+    curves with the texture model's predictions, not with the site's own calibration."""
+    group = site_groups(calibration)
+    flagged = group[group != "inside the bounds"]
+    drop = (residuals["level"] == "within-site") & residuals["site"].astype(str).isin(flagged.index)
+    present = set(residuals.loc[drop, "site"].astype(str))
+    left_out = {
+        name: sorted(s for s in flagged.index[flagged == name] if s in present)
+        for name in GROUPS
+        if name != "inside the bounds"
+    }
+    return residuals[~drop].reset_index(drop=True), {k: v for k, v in left_out.items() if v}
+
+
 def speed_bins(v: np.ndarray, bin_kmh: float) -> np.ndarray:
     """Lower edge (km/h) of the ``bin_kmh`` bin of each speed ``v``, bins from the lowest speed, the highest speed
     closing the last bin."""

@@ -272,14 +272,24 @@ def evaluate_extension(
     if isinstance(model.extension, SharedShape) and model.cause.level == "within-site":
         form = measured_curve_form(level_scopes)
         if form is not None:
-            if calibration is not None and form["curve_shape"]["exponential"]:
-                groups = calibration_groups(
-                    residuals, calibration, options.speed_bin_kmh, options.n_permutations or 999, options.seed
-                )
-                if groups is not None:
-                    form["by_calibration"] = groups
-            gain["curve_form"] = form
+            gain["curve_form"] = add_calibration_groups(form, residuals, calibration, options)
     return gain, best[2]
+
+
+def add_calibration_groups(
+    form: dict, residuals: pd.DataFrame, calibration: pd.DataFrame | None, options: DiagnosisOptions
+) -> dict:
+    """``form`` (gain.json ``curve_form``) with ``by_calibration`` (:func:`~skidsim.criticism.calibration_groups.
+    calibration_groups` of ``residuals``) where the measured curves are exponential and the calibration's record is
+    given; the permutations of the groups' own tests drawn from ``options.seed``. In place; returns ``form``."""
+    if calibration is None or not form["curve_shape"]["exponential"]:
+        return form
+    groups = calibration_groups(
+        residuals, calibration, options.speed_bin_kmh, options.n_permutations or 999, options.seed
+    )
+    if groups is not None:
+        form["by_calibration"] = groups
+    return form
 
 
 def measured_curve_form(level_scopes: dict) -> dict | None:

@@ -11,6 +11,8 @@ from ..options import section_items
 
 #: Values of ``fe_extension`` (the viscoelastic-slider recalibration of :mod:`skidsim.criticism.fe_extension`).
 FE_MODES = ("auto", "always", "never")
+#: Sites of the within-site level (``within_site_sites``).
+WITHIN_SITE_MODES = ("all", "settled")
 #: Step-up false-discovery procedures of ``fdr_method``: Benjamini-Hochberg, Benjamini-Yekutieli.
 FDR_METHODS = ("bh", "by")
 
@@ -32,8 +34,10 @@ class DiagnosisOptions:
     ``texture_share``: share of ``fdr`` for a family of the texture clusters and lone texture columns of their own,
     taken from the secondary family's (0: they stay secondary units, the default);
     ``adjust_texture``: between-site tests of sites.csv covariates conditioned on the texture; ``fe_extension``:
-    "auto" | "always" | "never"; ``viscoelastic``: the Prony series of the FE extension, ``prony_g`` (relative to
-    the long-term shear modulus) and ``prony_tau_s`` (relaxation times, s).
+    "auto" | "always" | "never"; ``within_site_sites``: the sites of the within-site level, "all" or "settled"
+    (those the calibration settled inside its bounds, where its record is given:
+    :func:`skidsim.criticism.calibration_groups.settled_residuals`); ``viscoelastic``: the Prony series of the FE
+    extension, ``prony_g`` (relative to the long-term shear modulus) and ``prony_tau_s`` (relaxation times, s).
     """
 
     seed: int = 11
@@ -49,6 +53,7 @@ class DiagnosisOptions:
     texture_share: float = 0.0
     adjust_texture: bool = True
     fe_extension: str = "auto"
+    within_site_sites: str = "settled"
     viscoelastic: dict = field(default_factory=_default_prony)
 
     def __post_init__(self):
@@ -66,6 +71,7 @@ class DiagnosisOptions:
             (self.speed_bin_kmh > 0, "speed_bin_kmh", "a positive speed bin (km/h)"),
             (self.n_permutations is None or int(self.n_permutations) >= 1, "n_permutations", "null or an integer >= 1"),
             (self.fe_extension in FE_MODES, "fe_extension", f"one of {FE_MODES}"),
+            (self.within_site_sites in WITHIN_SITE_MODES, "within_site_sites", f"one of {WITHIN_SITE_MODES}"),
         )
         for ok, key, expected in checks:
             if not ok:

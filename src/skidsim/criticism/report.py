@@ -287,6 +287,21 @@ def _untested_lines(untested: dict | None) -> list[str]:
     return lines + [f"* `{c}`: {why}" for c, why in untested.items()]
 
 
+def _left_out_lines(left_out: dict | None) -> list[str]:
+    """The sites the within-site tests left out (``within_site_sites: settled``), per group, with why."""
+    if not left_out:
+        return []
+    from .calibration_groups import GROUPS
+
+    parts = [f"{len(v)} where {GROUPS[k]} ({', '.join(v)})" for k, v in left_out.items()]
+    return [
+        "Within-site tests on the sites the calibration settled inside its bounds; left out: "
+        + "; ".join(parts)
+        + " (results/calibration/identifiability.csv says why, site by site).",
+        "",
+    ]
+
+
 def report_markdown(
     clist: list[dict], gain: dict, figures: dict | None, out: Path, top_n: int = 15, untested: dict | None = None
 ) -> str:
@@ -294,6 +309,7 @@ def report_markdown(
     (``untested``: {column: why}), figures (paths relative to ``out``)."""
     top = clist[0] if clist and clist[0]["significant"] else None
     lines = ["# Model criticism", ""] + _named_lines(top, gain) + _other_kind_lines(top, clist)
+    lines += _left_out_lines(gain.get("within_site_left_out"))
     lines += _gain_lines(gain) + _texture_model_lines(gain)
     lines += _candidate_lines(clist, top_n) + _untested_lines(untested)
     return "\n".join(lines + _figure_lines(figures, out)) + "\n"

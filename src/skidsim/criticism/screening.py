@@ -274,6 +274,7 @@ def screen_candidates(
     roles: CandidateRoles | None = None,
     texture_pc_scores: pd.DataFrame | None = None,
     texture_lead=(),
+    shape_residuals: pd.DataFrame | None = None,
 ) -> list[Cause]:
     """Screen every candidate cause at every level; returns the causes ranked by evidence
     (:func:`~skidsim.criticism.ranking.rank_causes`).
@@ -285,14 +286,16 @@ def screen_candidates(
     model's texture terms (``DiagnosisInputs.prediction_features``), axes of the texture-model candidate
     (:mod:`skidsim.criticism.texture_candidate`; the MPD column is always one). Random draws: one generator seeded with
     ``options.seed``, per level the site permutations, the nested permutations, then the sign flips. ``options``,
-    ``roles``: None for the defaults.
+    ``roles``: None for the defaults. ``shape_residuals``: the table the between-site functional form reads the
+    texture model's shape from (:func:`~skidsim.criticism.residuals.texture_model_shape`: every site's within-site
+    rows, where ``residuals`` leaves some out; None: ``residuals``).
     """
     options = DiagnosisOptions() if options is None else options
     roles = CandidateRoles() if roles is None else roles
     require_columns(residuals, ("site", "level", "speed_kmh", "residual"), "residuals")
     cands = candidate_set(sites, texture_wide, roles, options.cluster_rho)
     data = level_data(residuals, options)
-    ff_delta = _between_shape(residuals, data, options.speed_bin_kmh)
+    ff_delta = _between_shape(residuals if shape_residuals is None else shape_residuals, data, options.speed_bin_kmh)
     level_clusters = {}
     for lv, d in data.items():
         cl = beyond_lead_clusters(d, cands, texture_lead, options.cluster_rho)
