@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..atomic import write_parquet, write_text
+from .calibration_groups import GROUPS
 from .causes import BEYOND_TEXTURE, Cause, explains_section_effect, name_of_test, section_effect_label
 
 
@@ -291,8 +292,6 @@ def _left_out_lines(left_out: dict | None) -> list[str]:
     """The sites the within-site tests left out (``within_site_sites: settled``), per group, with why."""
     if not left_out:
         return []
-    from .calibration_groups import GROUPS
-
     parts = [f"{len(v)} where {GROUPS[k]} ({', '.join(v)})" for k, v in left_out.items()]
     return [
         "Within-site tests on the sites the calibration settled inside its bounds; left out: "
