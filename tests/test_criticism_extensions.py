@@ -221,6 +221,7 @@ def test_a_within_site_functional_form_says_whether_the_measured_curves_are_expo
     none."""
     from skidsim.criticism.calibration_groups import calibration_groups
     from skidsim.criticism.extensions import ExtendedModel, SharedShape
+    from skidsim.criticism.gain import add_calibration_groups
     from skidsim.criticism.report import report_markdown
     from skidsim.criticism.wlf import curve_form_reading, curve_shape
 
@@ -244,9 +245,7 @@ def test_a_within_site_functional_form_says_whether_the_measured_curves_are_expo
             "at_bound_params": ["mu_s:upper" if k % 2 else "" for k in range(len(names))],
         }
     )
-    gain_k, _ = cr.evaluate_extension(
-        ExtendedModel(ff, SharedShape()), res, tables["sites"], tables["texture"], opts, calibration=record
-    )
+    gain_k = {**gain, "curve_form": add_calibration_groups(dict(form), res, record, opts)}
     by = gain_k["curve_form"]["by_calibration"]
     assert by == calibration_groups(res, record, opts.speed_bin_kmh)
     assert [len(g["sites"]) for g in by["groups"]] == [len(names) // 2, len(names) - len(names) // 2]

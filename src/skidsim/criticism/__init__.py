@@ -185,9 +185,8 @@ def diagnose(
         texture_pc_scores=pcs,
         exclude=roles.exclude,
         measured=inputs.measured,
-        calibration=inputs.calibration if left_out is None else None,
     )
-    if left_out is not None and "curve_form" in gain:  # which sites carry the shape: every site, tested or not
+    if "curve_form" in gain:  # which sites carry the shape: every site, tested or not
         add_calibration_groups(gain["curve_form"], res_all, inputs.calibration, options)
     av = added_variable(res, sites, texture, top, bin_kmh, roles.exclude, texture_pc_scores=pcs)
     gain = {**gain, "texture_model": texture_model, **record}

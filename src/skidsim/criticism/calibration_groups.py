@@ -20,7 +20,8 @@ profiles, and its share of the shape all sites share follows from the mean profi
 site-weighted sum of the group profiles, ``P(b) = sum_g n_g G_g(b) / n``: the projections ``share_g = (n_g / n)
 sum_b G_g(b) P(b) / sum_b P(b)^2`` add up to 1 (a group whose profile runs against the shared one has a negative
 share). Each group is also tested alone by the functional form's statistic, ``T = n_g sum_b G_g(b)^2`` against
-random sign flips of whole sections' profiles (``p_alone``): whether its sites alone share a shape. The reading
+random sign flips of whole sections' profiles (``p_alone``, :func:`~skidsim.criticism.permutations.
+section_flip_shape`): whether its sites alone share a shape. The reading
 names the group of the largest share.
 
 Speeds km/h, friction mu (dimensionless).
@@ -30,6 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+
+from .permutations import permutation_p, section_flip_shape
 
 #: The flag of a calibrated law whose ``mu_s`` sits at the upper end of its interval (``at_bound_params``).
 BOUND_FLAG = "mu_s:upper"
@@ -90,18 +93,6 @@ def speed_bins(v: np.ndarray, bin_kmh: float) -> np.ndarray:
     return v.min() + np.clip(np.floor((v - v.min()) / bin_kmh), 0, n_bins - 1) * bin_kmh
 
 
-def shape_p_value(D: np.ndarray, sections: np.ndarray, n_perm: int, rng) -> float:
-    """Permutation p of the mean shape of the centred profiles ``D`` (sites x bins): ``T = n sum_b (mean_i
-    D_ib)^2`` against ``n_perm`` random sign flips of whole sections' profiles (``sections`` per site), ``(1 + #{T*
-    >= T}) / (n_perm + 1)``."""
-    n = D.shape[0]
-    t = n * float((D.mean(axis=0) ** 2).sum())
-    sec = np.unique(sections, return_inverse=True)[1]
-    flips = rng.choice(np.array([-1.0, 1.0]), size=(n_perm, int(sec.max()) + 1))[:, sec]
-    tp = ((flips @ D) ** 2).sum(axis=1) / n
-    return float((1 + np.count_nonzero(tp >= t * (1 - 1e-12))) / (n_perm + 1))
-
-
 def calibration_groups(
     residuals: pd.DataFrame, calibration: pd.DataFrame, bin_kmh: float = 10.0, n_perm: int = 999, seed: int = 11
 ) -> dict | None:
@@ -142,7 +133,7 @@ def calibration_groups(
                 "sites": sites,
                 "profile_mu": [float(x) for x in profile],
                 "share": float(len(sites) / len(D) * (profile @ shared) / norm),
-                "p_alone": shape_p_value(g, section.loc[sites].to_numpy(), n_perm, rng),
+                "p_alone": float(permutation_p(*section_flip_shape(g, section.loc[sites].to_numpy(), n_perm, rng))),
             }
         )
     out = {

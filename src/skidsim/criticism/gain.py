@@ -226,7 +226,6 @@ def evaluate_extension(
     texture_pc_scores: pd.DataFrame | None = None,
     exclude=DEFAULT_EXCLUDE,
     measured: pd.DataFrame | None = None,
-    calibration: pd.DataFrame | None = None,
 ) -> tuple[dict, pd.DataFrame]:
     """Cross-fit the extension (and its generic fallback) on held-out speeds and held-out sites, measure the gain.
 
@@ -235,10 +234,7 @@ def evaluate_extension(
     the texture-adjusted test (:func:`~skidsim.criticism.covariates.between_site_texture_scores`) for the
     texture-refit terms. ``measured`` (site, speed_kmh, mu): the DFT points, whose whole curves (down to 5 km/h,
     below the simulated speeds) the WLF shift of a temperature cause is read from (:func:`~skidsim.criticism.wlf.
-    wlf_curves`); None: the residual rows. ``calibration`` (site, flags, at_bound_params): the calibration's
-    record of each site; with it, a within-site functional form on exponential measured curves gets
-    ``curve_form``'s ``by_calibration`` (:func:`~skidsim.criticism.calibration_groups.calibration_groups`). Returns
-    (gain dict, predictions)."""
+    wlf_curves`); None: the residual rows. Returns (gain dict, predictions)."""
     # built once, used by every extension
     level_scopes = {level: make_scope(residuals, level, measured) for level in LEVELS}
     cov = _refit_covariates(residuals, sites, texture_wide, level_scopes, texture_pc_scores, exclude)
@@ -272,7 +268,7 @@ def evaluate_extension(
     if isinstance(model.extension, SharedShape) and model.cause.level == "within-site":
         form = measured_curve_form(level_scopes)
         if form is not None:
-            gain["curve_form"] = add_calibration_groups(form, residuals, calibration, options)
+            gain["curve_form"] = form
     return gain, best[2]
 
 

@@ -62,6 +62,16 @@ def perm_stats(
     return out
 
 
+def section_flip_shape(D: np.ndarray, sections: np.ndarray, P: int, rng) -> tuple[float, np.ndarray]:
+    """The mean-shape statistic of the centred profiles ``D`` (sites x bins), ``T = n sum_b (mean_i D_ib)^2``, and
+    its values under ``P`` random sign flips of whole sections' profiles (``sections`` per site; one draw of shape
+    (P, sections) from ``rng``): ``(T, Tp)``, the functional form's test."""
+    n, sec_index = D.shape[0], np.unique(sections, return_inverse=True)[1]
+    flips = rng.choice(np.array([-1.0, 1.0]), size=(P, int(sec_index.max()) + 1))[:, sec_index]
+    T = n * float((D.mean(axis=0) ** 2).sum())
+    return T, ((flips @ D) ** 2).sum(axis=1) / n
+
+
 def permutation_p(T: float, Tp: np.ndarray) -> float:
     """Permutation p-value ``(1 + #{T_perm >= T}) / (P + 1)`` (relative tolerance 1e-12 for ties)."""
     return (1 + np.sum(Tp >= T * (1 - 1e-12))) / (len(Tp) + 1)

@@ -35,7 +35,7 @@ from .extensions import ifi_speed_constant_kmh
 from .fdr import adjust, family_sizes, has_texture_family, permutation_count
 from .levels import CandidateTest, LevelContext, level_context, level_data
 from .options import DiagnosisOptions
-from .permutations import perm_stats
+from .permutations import perm_stats, section_flip_shape
 from .ranking import rank_causes
 from .residuals import require_columns, texture_model_shape
 from .section_tests import section_rest_tests, texture_model_basis
@@ -219,10 +219,8 @@ def functional_form_test(ctx: LevelContext, ff_delta: pd.DataFrame | None, P: in
     if ctx.data.level == "between-site" and ff_delta is not None:
         Dff = ff_delta.loc[ctx.data.site_ids].to_numpy(float)
         Dff = Dff - Dff.mean(axis=1, keepdims=True)
-    n, sec_index = ctx.n, np.unique(ctx.sec, return_inverse=True)[1]
-    flips = rng.choice(np.array([-1.0, 1.0]), size=(P, int(sec_index.max()) + 1))[:, sec_index]
-    Tff = n * float((Dff.mean(axis=0) ** 2).sum())
-    Tffp = ((flips @ Dff) ** 2).sum(axis=1) / n
+    n = ctx.n
+    Tff, Tffp = section_flip_shape(Dff, ctx.sec, P, rng)
     sse0, sse1 = cv_sse(Dff, None, "", folds(ctx.sec, False))
     return CandidateTest(
         "functional_form",
