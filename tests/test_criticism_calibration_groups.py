@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from skidsim.criticism.calibration_groups import GROUPS, calibration_groups, site_groups, speed_bins
+from skidsim.criticism.calibration_groups import GROUPS, calibration_groups, site_groups
 
 SPEEDS = np.r_[np.arange(20.0, 70.0, 2.5), 70.0]  # a trace every 2.5 km/h up to 70 km/h
 
@@ -64,17 +64,19 @@ def test_each_site_goes_to_the_first_group_that_applies():
 
 
 def test_the_shares_split_the_mean_profile_among_the_groups():
-    """The sites at the bound fall with speed, the others are flat: the bound group's profile is the line's value
-    at each bin's mean speed (70 km/h closes the last bin) less its mean over the bins (centred, as the functional
-    form's test), and it carries the whole shared shape (share 1, the others 0). Its own permutation p is the
-    chance that random signs of its 4 sections' profiles all agree, 2 / 2^4; a flat group's p is 1. With the
-    unsettled sites falling 1.5 times as steeply, the shares follow the sites' weights in the mean profile (4 x 1
-    against 2 x 1.5), and with every group falling the largest share below a half is "the largest part"; the
-    shares always add up to 1."""
+    """The sites at the bound fall with speed, the others are flat: the bound group's profile is the line's value at
+    each bin's mean speed (bins centred on multiples of 10 km/h, a speed halfway rounded to the even multiple:
+    25 km/h to 20, 35 to 40) less its mean over the bins (centred, as the functional form's test), and it
+    carries the whole shared shape (share 1, the others 0). Its own permutation p is the chance that random
+    signs of its 4 sections' profiles all agree, 2 / 2^4; a flat group's p is 1. With the unsettled sites
+    falling 1.5 times as steeply, the shares follow the sites' weights in the mean profile (4 x 1 against 2 x
+    1.5), and with every group falling the largest share below a half is "the largest part"; the shares always
+    add up to 1."""
     res = residual_table({**dict.fromkeys(BOUND, falling), **dict.fromkeys(UNSETTLED + INSIDE, flat)})
     rec = calibration_groups(res, record(), n_perm=999, seed=3)
-    assert rec["speeds_kmh"] == [20.0, 30.0, 40.0, 50.0, 60.0]
-    assert rec["speed_range_kmh"][0] == [20.0, 27.5] and rec["speed_range_kmh"][-1] == [60.0, 70.0]
+    assert rec["speeds_kmh"] == [20.0, 30.0, 40.0, 50.0, 60.0, 70.0]
+    assert rec["speed_range_kmh"][0] == [20.0, 25.0] and rec["speed_range_kmh"][1] == [27.5, 32.5]
+    assert rec["speed_range_kmh"][-1] == [67.5, 70.0]
     centres = np.array([np.mean(SPEEDS[(SPEEDS >= lo) & (SPEEDS <= hi)]) for lo, hi in rec["speed_range_kmh"]])
     line = falling(centres) - falling(centres).mean()
     by = {g["group"]: g for g in rec["groups"]}
@@ -86,7 +88,7 @@ def test_the_shares_split_the_mean_profile_among_the_groups():
     assert by["not settled"]["p_alone"] == 1.0 and by["inside the bounds"]["p_alone"] == 1.0
     assert by["not settled"]["sites"] == UNSETTLED
     assert "most of it is carried by the sites at the upper bound of mu_s: the law's upper bound" in rec["reading"]
-    assert "4 at the upper bound of mu_s (+0.010 to -0.01" in rec["reading"]  # the profile's ends, 3 decimals
+    assert "4 at the upper bound of mu_s (+0.011 to -0.012)" in rec["reading"]  # the profile's ends, 3 decimals
     assert "share 1.00, alone p 0.1" in rec["reading"]
 
     steep = residual_table(
@@ -138,9 +140,26 @@ def test_no_reading_without_within_site_rows_of_recorded_sites_or_a_shape():
     assert calibration_groups(residual_table(dict.fromkeys(BOUND, flat)), record()) is None  # no shape to share
 
 
-def test_speed_bins_close_the_last_bin_with_the_top_speed():
-    assert speed_bins(np.array([20.0, 29.9, 30.0, 69.9, 70.0]), 10.0).tolist() == [20.0, 20.0, 30.0, 60.0, 60.0]
-    assert speed_bins(np.array([5.0, 5.0]), 10.0).tolist() == [5.0, 5.0]
+def test_the_profiles_are_the_functional_form_matrix():
+    """The groups' profiles are the functional form's centred site profiles: per site the mean residual in each
+    bin centred on a multiple of 10 km/h, the bins observed at every site, minus the site's mean over them; computed
+    here by hand on random residuals (one site lacks the 70 km/h bin, which is then dropped for all)."""
+    rng = np.random.default_rng(5)
+    sites = BOUND + UNSETTLED + INSIDE
+    coef = rng.normal(size=(len(sites), 2))
+    res = residual_table({s: (lambda v, c=c: 0.01 * c[0] + 0.0003 * c[1] * v) for s, c in zip(sites, coef)})
+    res.loc[res["level"] == "within-site", "residual"] += rng.normal(0, 0.002, (res["level"] == "within-site").sum())
+    res = res[~((res["site"] == "b6") & (res["speed_kmh"] >= 67.5))]
+    rec = calibration_groups(res, record())
+    w = res[res["level"] == "within-site"]
+    tab = w.assign(b=[10.0 * round(v / 10.0) for v in w["speed_kmh"]]).pivot_table("residual", "site", "b", "mean")
+    tab = tab.loc[:, tab.notna().all()]
+    D = tab.sub(tab.mean(axis=1), axis=0)
+    assert rec["speeds_kmh"] == [20.0, 30.0, 40.0, 50.0, 60.0]
+    assert np.allclose(rec["shared_profile_mu"], D.mean().to_numpy(), atol=1e-15)
+    by = {g["group"]: g for g in rec["groups"]}
+    for name in GROUPS:
+        assert np.allclose(by[name]["profile_mu"], D.loc[by[name]["sites"]].mean().to_numpy(), atol=1e-15)
 
 
 def pinned_campaign(seed: int = 5):

@@ -14,15 +14,15 @@ docs/calibration.md, "Quality and identifiability") tell three groups of sites a
 * **inside the bounds**: the others, whose share is the FE's response to the law between the calibration speeds.
 
 :func:`calibration_groups` works on each site's centred residual profile, as the functional form's test does
-(:func:`~skidsim.criticism.screening.functional_form_test`): the site's mean within-site residual (measured minus
-simulated, mu) per speed bin minus its mean over the bins. Each group's profile ``G_g`` is the mean of its sites'
-profiles, and its share of the shape all sites share follows from the mean profile over all sites ``P``, the
-site-weighted sum of the group profiles, ``P(b) = sum_g n_g G_g(b) / n``: the projections ``share_g = (n_g / n)
-sum_b G_g(b) P(b) / sum_b P(b)^2`` add up to 1 (a group whose profile runs against the shared one has a negative
-share). Each group is also tested alone by the functional form's statistic, ``T = n_g sum_b G_g(b)^2`` against
-random sign flips of whole sections' profiles (``p_alone``, :func:`~skidsim.criticism.permutations.
-section_flip_shape`): whether its sites alone share a shape. The reading
-names the group of the largest share.
+(:func:`~skidsim.criticism.screening.functional_form_test`), on the same matrix: the site's mean within-site
+residual (measured minus simulated, mu) per speed bin (bins centred on multiples of the diagnosis's
+``speed_bin_kmh``, those observed at every site) minus its mean over the bins. Each group's profile ``G_g`` is the
+mean of its sites' profiles, and its share of the shape all sites share follows from the mean profile over all sites
+``P``, the site-weighted sum of the group profiles, ``P(b) = sum_g n_g G_g(b) / n``: the projections ``share_g =
+(n_g / n) sum_b G_g(b) P(b) / sum_b P(b)^2`` add up to 1 (a group whose profile runs against the shared one has a
+negative share). Each group is also tested alone by the functional form's statistic, ``T = n_g sum_b G_g(b)^2``
+against random sign flips of whole sections' profiles (``p_alone``, :func:`~skidsim.criticism.permutations.
+section_flip_shape`): whether its sites alone share a shape. The reading names the group of the largest share.
 
 Speeds km/h, friction mu (dimensionless).
 """
@@ -32,7 +32,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..errors import InputError
+from .levels import curve_responses
 from .permutations import permutation_p, section_flip_shape
+from .residuals import level_matrix
 
 #: The flag of a calibrated law whose ``mu_s`` sits at the upper end of its interval (``at_bound_params``).
 BOUND_FLAG = "mu_s:upper"
@@ -86,34 +89,32 @@ def settled_residuals(residuals: pd.DataFrame, calibration: pd.DataFrame) -> tup
     return residuals[~drop].reset_index(drop=True), {k: v for k, v in left_out.items() if v}
 
 
-def speed_bins(v: np.ndarray, bin_kmh: float) -> np.ndarray:
-    """Lower edge (km/h) of the ``bin_kmh`` bin of each speed ``v``, bins from the lowest speed, the highest speed
-    closing the last bin."""
-    n_bins = max(1, int(np.ceil((v.max() - v.min()) / bin_kmh - 1e-9)))
-    return v.min() + np.clip(np.floor((v - v.min()) / bin_kmh), 0, n_bins - 1) * bin_kmh
-
-
 def calibration_groups(
     residuals: pd.DataFrame, calibration: pd.DataFrame, bin_kmh: float = 10.0, n_perm: int = 999, seed: int = 11
 ) -> dict | None:
-    """Each group's centred within-site residual profile (mu per speed bin of ``bin_kmh`` km/h, :func:`speed_bins`),
-    its sites, its share of the mean profile over the sites and its own permutation p (``n_perm`` sign flips drawn
-    from ``seed``) (module docstring), and the reading. ``residuals``: the diagnosis's residual table (site,
-    section, level, speed_kmh, residual); ``calibration``: site, flags, at_bound_params per site (sites it does not
-    list take no part). None without within-site rows of a listed site, with fewer than 2 bins, or where the mean
-    profile is zero. Sites without a value in every bin take no part."""
+    """Each group's centred within-site residual profile (mu per speed bin of ``bin_kmh`` km/h), its sites, its
+    share of the mean profile over the sites and its own permutation p (``n_perm`` sign flips drawn from ``seed``)
+    (module docstring), and the reading. The profiles are the functional form's (:func:`~skidsim.criticism.
+    residuals.level_matrix` and :func:`~skidsim.criticism.levels.curve_responses` of the listed sites'
+    within-site rows: bins centred on multiples of ``bin_kmh``, those observed at every site). ``residuals``: the
+    diagnosis's residual table (site, section, level, speed_kmh, residual); ``calibration``: site, flags,
+    at_bound_params per site (sites it does not list take no part). None without within-site rows of a listed
+    site, with fewer than 2 bins, or where the mean profile is zero."""
     group = site_groups(calibration)
     w = residuals[(residuals["level"] == "within-site") & residuals["site"].astype(str).isin(group.index)]
     if w.empty:
         return None
-    v = w["speed_kmh"].to_numpy(float)
-    w = w.assign(site=w["site"].astype(str), bin=speed_bins(v, bin_kmh))
-    means = w.groupby(["site", "bin"])["residual"].mean().unstack("bin").dropna()
-    if means.shape[1] < 2 or means.empty:
+    w = w.assign(site=w["site"].astype(str))
+    try:
+        ids, bins, R = level_matrix(w, "within-site", bin_kmh)
+    except InputError:  # no bin observed at every site
         return None
+    if bins.size < 2:
+        return None
+    D = pd.DataFrame(curve_responses(R)[0], index=ids, columns=bins)  # centred profiles, the functional form's
     section = w.groupby("site")["section"].first().astype(str)
-    span = w.groupby("bin")["speed_kmh"].agg(["min", "max"])
-    D = means.sub(means.mean(axis=1), axis=0)  # centred profiles, as the functional form's test
+    span = w.assign(bin=np.round(w["speed_kmh"].to_numpy(float) / bin_kmh) * bin_kmh).groupby("bin")["speed_kmh"]
+    span = span.agg(["min", "max"])
     shared = D.mean(axis=0).to_numpy(float)  # P(b)
     norm = float((shared * shared).sum())
     if not norm > 0:
