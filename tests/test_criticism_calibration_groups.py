@@ -228,6 +228,32 @@ def test_the_within_site_level_of_the_settled_sites_leaves_out_the_pinned_laws()
     assert (settled.residuals["level"] == "between-site").sum() == (every.residuals["level"] == "between-site").sum()
     assert not any(c.significant and c.level == "within-site" for c in settled.causes), settled.causes[:3]
     report = report_markdown([], settled.gain, None, ".")
-    assert "Within-site tests on the sites the calibration settled inside its bounds; left out: 18 where the " in report
+    assert settled.gain["within_site_sites_tested"] == 18
+    assert (
+        "Within-site tests on the 18 sites the calibration settled inside its bounds; left out: 18 where the " in report
+    )
+    assert "not screened" not in report
     kept, left = settled_residuals(every.residuals, inputs.calibration)
     assert left == {"at the upper bound of mu_s": pinned} and len(kept) == len(settled.residuals)
+
+
+def test_too_few_settled_sites_leave_the_within_site_level_unscreened_and_the_report_says_so():
+    """With 3 settled sites (fewer than the 4 a level needs) the within-site level is not screened: no within-site
+    cause, gain.json counts the 3 sites and report.md says that no cause within sites could be named."""
+    from skidsim import criticism as cr
+    from skidsim.criticism import DiagnosisInputs, DiagnosisOptions
+    from skidsim.criticism.report import report_markdown
+
+    inputs, _ = pinned_campaign()
+    rec = inputs.calibration.assign(flags="at_bound", at_bound_params="mu_s:upper")
+    rec.loc[:2, ["flags", "at_bound_params"]] = ""
+    few = DiagnosisInputs(
+        inputs.sites, inputs.measured, inputs.simulated, inputs.predicted, inputs.texture, calibration=rec
+    )
+    r = cr.diagnose(few, DiagnosisOptions(seed=2, n_boot=50, within_site_sites="settled"))
+    assert r.gain["within_site_sites_tested"] == 3
+    assert len(r.gain["within_site_left_out"]["at the upper bound of mu_s"]) == 33
+    assert not any(c.level == "within-site" for c in r.causes)
+    report = report_markdown([], r.gain, None, ".")
+    assert "Within-site tests on the 3 sites" in report
+    assert "**The within-site level was not screened**: it needs at least 4 sites" in report

@@ -147,7 +147,10 @@ def diagnose(
     res, left_out = res_all, None
     if options.within_site_sites == "settled" and inputs.calibration is not None:
         res, left_out = settled_residuals(res_all, inputs.calibration)
-    record = {} if left_out is None else {"within_site_left_out": left_out}
+    record = {}
+    if left_out is not None:
+        n_within = int(res.loc[res["level"] == "within-site", "site"].nunique())
+        record = {"within_site_left_out": left_out, "within_site_sites_tested": n_within}
     # one texture model (the prediction model's columns when they predict better, then PCs) for all steps
     pcs, texture_model = texture_model_scores(
         res, sites, texture, bin_kmh, roles.exclude, lead=inputs.prediction_features

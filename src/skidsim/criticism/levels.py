@@ -61,12 +61,16 @@ class LevelData:
     measured: np.ndarray | None = None
 
 
+#: The fewest sites with residuals at a level for its tests (fewer: the level is not screened).
+MIN_LEVEL_SITES = 4
+
+
 def level_data(residuals: pd.DataFrame, options: DiagnosisOptions) -> dict:
-    """{level: LevelData} for every level with residuals at >= 4 sites."""
+    """{level: LevelData} for every level with residuals at >= :data:`MIN_LEVEL_SITES` sites."""
     out = {}
     for level in LEVELS:
         res = residuals[residuals["level"] == level]
-        if res["site"].nunique() < 4:
+        if res["site"].nunique() < MIN_LEVEL_SITES:
             continue
         site_ids, bins, R = level_matrix(residuals, level, options.speed_bin_kmh)
         out[level] = LevelData(level, site_ids, bins, R)

@@ -13,6 +13,7 @@ import pandas as pd
 from ..atomic import write_parquet, write_text
 from .calibration_groups import GROUPS
 from .causes import BEYOND_TEXTURE, Cause, explains_section_effect, name_of_test, section_effect_label
+from .levels import MIN_LEVEL_SITES
 
 
 def json_safe(o):
@@ -288,17 +289,25 @@ def _untested_lines(untested: dict | None) -> list[str]:
     return lines + [f"* `{c}`: {why}" for c, why in untested.items()]
 
 
-def _left_out_lines(left_out: dict | None) -> list[str]:
-    """The sites the within-site tests left out (``within_site_sites: settled``), per group, with why."""
+def _left_out_lines(left_out: dict | None, n_tested: int | None = None) -> list[str]:
+    """The sites the within-site tests left out (``within_site_sites: settled``), per group, with why; with
+    ``n_tested`` (gain.json ``within_site_sites_tested``) how many sites the within-site tests kept, and, below
+    :data:`~skidsim.criticism.levels.MIN_LEVEL_SITES`, that the within-site level was not screened."""
     if not left_out:
         return []
     parts = [f"{len(v)} where {GROUPS[k]} ({', '.join(v)})" for k, v in left_out.items()]
-    return [
-        "Within-site tests on the sites the calibration settled inside its bounds; left out: "
+    kept = "the" if n_tested is None else f"the {n_tested}"
+    lines = [
+        f"Within-site tests on {kept} sites the calibration settled inside its bounds; left out: "
         + "; ".join(parts)
-        + " (results/calibration/identifiability.csv says why, site by site).",
-        "",
+        + " (results/calibration/identifiability.csv says why, site by site)."
     ]
+    if n_tested is not None and n_tested < MIN_LEVEL_SITES:
+        lines[0] += (
+            f" **The within-site level was not screened**: it needs at least {MIN_LEVEL_SITES} sites; no cause "
+            "within sites (a speed shape the calibrated law misses at its own site) could be named."
+        )
+    return lines + [""]
 
 
 def report_markdown(
@@ -308,7 +317,7 @@ def report_markdown(
     (``untested``: {column: why}), figures (paths relative to ``out``)."""
     top = clist[0] if clist and clist[0]["significant"] else None
     lines = ["# Model criticism", ""] + _named_lines(top, gain) + _other_kind_lines(top, clist)
-    lines += _left_out_lines(gain.get("within_site_left_out"))
+    lines += _left_out_lines(gain.get("within_site_left_out"), gain.get("within_site_sites_tested"))
     lines += _gain_lines(gain) + _texture_model_lines(gain)
     lines += _candidate_lines(clist, top_n) + _untested_lines(untested)
     return "\n".join(lines + _figure_lines(figures, out)) + "\n"
