@@ -35,7 +35,7 @@ import pandas as pd
 from ..errors import InputError
 from .levels import curve_responses
 from .permutations import permutation_p, section_flip_shape
-from .residuals import level_matrix
+from .residuals import level_matrix, speed_bin_centres
 
 #: The flag of a calibrated law whose ``mu_s`` sits at the upper end of its interval (``at_bound_params``).
 BOUND_FLAG = "mu_s:upper"
@@ -113,8 +113,7 @@ def calibration_groups(
         return None
     D = pd.DataFrame(curve_responses(R)[0], index=ids, columns=bins)  # centred profiles, the functional form's
     section = w.groupby("site")["section"].first().astype(str)
-    span = w.assign(bin=np.round(w["speed_kmh"].to_numpy(float) / bin_kmh) * bin_kmh).groupby("bin")["speed_kmh"]
-    span = span.agg(["min", "max"])
+    span = w.groupby(speed_bin_centres(w["speed_kmh"], bin_kmh))["speed_kmh"].agg(["min", "max"])
     shared = D.mean(axis=0).to_numpy(float)  # P(b)
     norm = float((shared * shared).sum())
     if not norm > 0:

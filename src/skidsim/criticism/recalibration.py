@@ -26,6 +26,7 @@ from .extensions import (
     exp_curve,
     fit_exp_curves,
 )
+from .residuals import speed_bin_centres
 from .scopes import Scope, centred_speed, site_mean, site_target, site_values
 from .wlf import curve_bc, decay_covariate, log10_decay_column, wlf_curves, wlf_from_curves
 
@@ -300,7 +301,7 @@ def _recalibrate_physical(ext, scope: Scope, cov: pd.DataFrame, train: np.ndarra
 
 def _recalibrate_shape(ext: SharedShape, scope: Scope, resid: np.ndarray, rows_tr: np.ndarray) -> dict:
     v = scope.rows["speed_kmh"].to_numpy(float)
-    b = np.round(v[rows_tr] / ext.speed_bin_kmh) * ext.speed_bin_kmh
+    b = speed_bin_centres(v[rows_tr], ext.speed_bin_kmh)
     prof = pd.Series(resid[rows_tr]).groupby(b).mean()
     return {"speed_kmh": prof.index.to_list(), "h": prof.to_list()}
 

@@ -109,10 +109,16 @@ def build_residuals(
     return pd.concat(frames, ignore_index=True)[COLUMNS]
 
 
+def speed_bin_centres(speed_kmh, speed_bin_kmh: float) -> np.ndarray:
+    """The speed bin (its centre, km/h) of each speed: the nearest multiple of ``speed_bin_kmh``, a speed halfway
+    between two going to the even multiple (``np.round``). The bins of every residual profile of the diagnosis."""
+    return np.round(np.asarray(speed_kmh, dtype=float) / speed_bin_kmh) * speed_bin_kmh
+
+
 def residual_matrix(res: pd.DataFrame, speed_bin_kmh: float) -> tuple[list, np.ndarray, np.ndarray]:
-    """(sites, bin centres km/h, R (n_sites, n_bins)) of mean residual per site and speed bin; bins not observed at
-    every site are dropped."""
-    b = np.round(res["speed_kmh"].to_numpy(float) / speed_bin_kmh) * speed_bin_kmh
+    """(sites, bin centres km/h, R (n_sites, n_bins)) of mean residual per site and speed bin
+    (:func:`speed_bin_centres`); bins not observed at every site are dropped."""
+    b = speed_bin_centres(res["speed_kmh"], speed_bin_kmh)
     tab = res.assign(bin=b).pivot_table(index="site", columns="bin", values="residual", aggfunc="mean")
     tab = tab.loc[:, tab.notna().all(axis=0)]
     if tab.shape[1] == 0:
