@@ -283,7 +283,7 @@ def rss_mb() -> float:
 def ours_subset(s: Surface, workers: int) -> dict:
     z = s.heights - s.heights.mean()
     hp = height_parameters(z)
-    sp = spatial_parameters(z, s.dx, s.dy, workers=workers)
+    sp = spatial_parameters(z, s.dx, s.dy, workers=workers, direction=False)  # Sal and Str, as surfalize's: no Std
     sk = core_height(z)  # Sk alone, as surfalize's Sk: not the volumes and ratios of material_ratio_parameters
     fp = ten_point_height(z, s.dx, s.dy, exclude_edge=True)  # surfalize's convention: edge motifs dropped
     return {

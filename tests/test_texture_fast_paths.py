@@ -298,6 +298,57 @@ def test_contract_leaves_same_units_and_saddles(name, pct, share, monkeypatch):
 @pytest.mark.parametrize("name", list(FIELDS))
 @pytest.mark.parametrize("pct", [0.0, 1.0, 5.0, 20.0, 60.0])
 @pytest.mark.parametrize("blocks", [False, True])
+def test_saddles_at_which_the_pruning_can_merge(name, pct, blocks, request):
+    """``_saddles(..., merging=(minima, t))``: the edges of the whole set with at least one pair of points below
+    ``max(min_x, min_y) + t`` (as a rounded difference), each with its exact saddle, and every edge left out has
+    its saddle at or above that; the segmentation without bases has the same motifs, critical points and edge
+    flags as the whole one."""
+    if blocks:
+        request.getfixturevalue("small_blocks")
+    z = FIELDS[name]()
+    t = pct / 100 * float(z.max() - z.min())
+    for d in (z, -z):
+        labels, n, sink = seg.catchment_basins(d)
+        low = d.ravel()[sink]
+        a, b, sad = saddles._saddles(labels, d, n)
+        fa, fb, fs = saddles._saddles(labels, d, n, merging=(low, t))
+        kept = sad - np.maximum(low[a], low[b]) < t
+        same(fa, a[kept])
+        same(fb, b[kept])
+        same(fs, sad[kept])
+        whole = seg.segment(d, t, 0.05, 0.05, measure=False)
+        bare = seg.segment(d, t, 0.05, 0.05, measure=False, bases=False)
+        for field in ("critical_index", "critical", "touches_edge", "motif_of_basin"):
+            same(getattr(bare, field), getattr(whole, field))
+        assert np.isnan(bare.base).all() and np.isnan(bare.volume_mm3).all()
+    with pytest.raises(ValueError, match="bases=False needs measure=False"):
+        seg.segment(z, t, 0.05, 0.05, bases=False)
+
+
+def test_saddles_at_which_the_pruning_can_merge_leave_out_most_of_a_microtexture():
+    """On white noise at 5 % of Sz most basins are deeper than the threshold: most edges are left out (the
+    filter does something), and the ten-point height is that of the whole segmentation."""
+    d = np.random.default_rng(11).standard_normal((120, 150))
+    t = 0.05 * float(d.max() - d.min())
+    labels, n, sink = seg.catchment_basins(d)
+    low = d.ravel()[sink]
+    whole = saddles._saddles(labels, d, n)[0].size
+    kept = saddles._saddles(labels, d, n, merging=(low, t))[0].size
+    assert 0 < kept < 0.5 * whole
+    zc = d - d.mean()
+    full = feature_parameters(zc, 0.05, 0.05, exclude_edge=True)
+    assert features.ten_point_height(zc, 0.05, 0.05, exclude_edge=True)["S10z"] == full["S10z"]
+
+
+@pytest.mark.parametrize("size", [1, 2, 7, 1000])
+def test_run_starts_are_the_concatenated_comparison(size):
+    v = np.random.default_rng(size).integers(0, 3, size)
+    same(saddles.run_starts(v), np.flatnonzero(np.r_[True, v[1:] != v[:-1]]))
+
+
+@pytest.mark.parametrize("name", list(FIELDS))
+@pytest.mark.parametrize("pct", [0.0, 1.0, 5.0, 20.0, 60.0])
+@pytest.mark.parametrize("blocks", [False, True])
 def test_deepest_motifs_are_the_first_critical_values(name, pct, blocks, request):
     if blocks:
         request.getfixturevalue("small_blocks")

@@ -345,3 +345,8 @@ def test_spatial_parameters_identical(field, first_window, on_border, monkeypatc
     assert_same(sp.decay_mm, lengths)
     for new, ref in ((sp.Sal, sal), (sp.Str, stri), (sp.Std, std)):
         assert new == ref or (np.isnan(new) and np.isnan(ref))
+    alone = spatial.spatial_parameters(z, 0.05, 0.04, on_border=on_border, direction=False)  # Sal and Str only
+    assert_same(alone.decay_mm, lengths)
+    for new, ref in ((alone.Sal, sal), (alone.Str, stri)):
+        assert new == ref or (np.isnan(new) and np.isnan(ref))
+    assert np.isnan(alone.Std)

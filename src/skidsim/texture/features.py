@@ -81,7 +81,7 @@ def feature_parameters(
     if hills is None:
         hills = segment(-zc, t, dx, dy, keep_peaks=dales is None)
     if dales is None and exclude_edge:
-        dales = segment(zc, t, dx, dy, measure=False)  # S5v reads its critical points and edge flags only
+        dales = segment(zc, t, dx, dy, measure=False, bases=False)  # S5v: its critical points and edge flags
     area = (zc.shape[1] - 1) * dx * (zc.shape[0] - 1) * dy
     hk = hills.select(exclude_edge)
     curv = peak_curvature(zc, hills.critical_index[hk], dx, dy, spc_half_window)
@@ -106,8 +106,8 @@ def ten_point_height(
     """S10z, S5p, S5v (mm) of mean-subtracted heights ``zc`` (mm) alone: the values of :func:`feature_parameters`,
     without the passes over the points for the hills' areas and volumes, nor the peaks' curvature."""
     t = pruning_threshold(zc, pruning_pct, pruning_reference, sz=sz)
-    hills = segment(-zc, t, dx, dy, keep_peaks=not exclude_edge, measure=False)
-    dales = segment(zc, t, dx, dy, measure=False) if exclude_edge else None
+    hills = segment(-zc, t, dx, dy, keep_peaks=not exclude_edge, measure=False, bases=False)
+    dales = segment(zc, t, dx, dy, measure=False, bases=False) if exclude_edge else None
     return _ten_point(zc, t, hills, dales, exclude_edge)
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .saddles import run_starts
+
 _PARALLEL_EDGES_SHARE = 0.7  # _contract_leaves drops dominated parallel edges after a round keeping more edges
 
 
@@ -23,7 +25,7 @@ def _drop_dominated_edges(a, b, pour, n):
     key.sort()
     order = key & ((1 << idx_bits) - 1)
     key >>= idx_bits
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    starts = run_starts(key)
     p = pour.take(order)
     low = np.minimum.reduceat(p, starts)
     keep = np.empty(a.size, dtype=bool)

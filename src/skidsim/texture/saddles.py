@@ -6,7 +6,16 @@ from __future__ import annotations
 
 import numpy as np
 
-_SADDLE_STRIP_POINTS = 16 * 2448  # points per strip of rows in _saddles
+_SADDLE_STRIP_POINTS = 64 * 2448  # points per strip of rows in _saddles
+
+
+def run_starts(v: np.ndarray) -> np.ndarray:
+    """Indices where a run of equal consecutive values of ``v`` (1-d, non-empty) starts:
+    ``np.flatnonzero(np.r_[True, v[1:] != v[:-1]])``, without building the concatenation."""
+    m = np.empty(v.size, dtype=bool)
+    m[:1] = True
+    np.not_equal(v[1:], v[:-1], out=m[1:])
+    return np.flatnonzero(m)
 
 
 def boundary_pairs(labels: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -70,21 +79,36 @@ def _unique_min(key: np.ndarray, pour: np.ndarray, key_bound: int) -> tuple[np.n
     else:
         order = np.argsort(key)
         key = key[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    starts = run_starts(key)
     return key[starts], np.minimum.reduceat(pour.take(order, mode="clip"), starts)
 
 
-def _saddles(labels: np.ndarray, d: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _saddles(
+    labels: np.ndarray, d: np.ndarray, n: int, merging: tuple[np.ndarray, float] | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``dedupe_edges(*boundary_pairs(labels, d), n)``, same result, in strips of rows: the pairs of each
     direction whose first point lies in the strip are keyed as unordered pairs at once (across rows, a run of the
     same pair in raster order kept once with its minimum pour) and reduced to unique keys
     with their minimum pour per strip (in cache: most basins lie in one or two strips); the strips' keys are then
     reduced once more. The minimum is exact and does not depend on the order, so the saddles are those of the
-    whole set of pairs."""
+    whole set of pairs.
+
+    ``merging = (minimum of each basin (0-based, mm), Wolf threshold t (mm))``: only the saddles at which the
+    pruning can merge (:func:`skidsim.texture.pruning._contract_leaves`): a pair of points of basins ``x`` and
+    ``y`` at pour ``p`` is dropped when ``p - max(min_x, min_y) >= t``. Every unit the pruning forms around
+    either basin has a minimum no higher than that basin's, so ``p`` minus it is at least ``t`` too (rounded
+    subtraction is monotone): such a saddle is never the lowest of a unit below the threshold, and the units
+    below the threshold keep their lowest saddle and the neighbour across it. An edge whose every pair is
+    dropped is left out; the others keep their exact saddle (the minimum is over kept pairs, and a dropped pair
+    is above it). The pruning's units are the same; the saddles between settled motifs (their bases) are not all
+    there."""
     rows, cols = labels.shape
     lf = labels.ravel()
     df = d.ravel()
     total = lf.size
+    if merging is not None:  # the minimum of each basin by 1-based label (entry 0 unused), and t
+        low1 = np.concatenate(([np.inf], merging[0]))
+        t = float(merging[1])
     base = n + 1  # key = lo * base + hi on 1-based labels: ascending like the 0-based keys of dedupe_edges
     bound = base * base
     block = max(1, _SADDLE_STRIP_POINTS // max(cols, 1))
@@ -108,11 +132,18 @@ def _saddles(labels: np.ndarray, d: np.ndarray, n: int) -> tuple[np.ndarray, np.
                 continue
             x, y = la.take(ia), lb.take(ia)
             p = np.maximum(df[a0:e].take(ia), df[a0 + step : e + step].take(ia))
+            if merging is not None:
+                keep = np.maximum(low1.take(x), low1.take(y))
+                np.subtract(p, keep, out=keep)
+                keep = keep < t
+                x, y, p = x[keep], y[keep], p[keep]
+                if x.size == 0:
+                    continue
             key = np.minimum(x, y).astype(np.int64)
             key *= base
             key += np.maximum(x, y)
             if step != 1:  # along a boundary across rows the same pair repeats point after point: one per run
-                st = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+                st = run_starts(key)
                 if st.size < key.size:
                     key = key.take(st)
                     p = np.minimum.reduceat(p, st)

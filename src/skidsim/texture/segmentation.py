@@ -84,41 +84,31 @@ def segment(
     keep_labels: bool = False,
     keep_peaks: bool = False,
     measure: bool = True,
+    bases: bool = True,
 ) -> Segmentation:
     """Wolf-pruned watershed segmentation of ``d`` (mm) into dales; see the module docstring. ``keep_peaks``: also
     the sinks of ``-d`` (from the same pass over the neighbours; :func:`deepest_motifs` of ``-d`` reads them).
     ``measure=False``: no pass over the points for the motifs' areas and volumes (NaN) nor for the highest point
-    of a lone motif (its base is then NaN); critical points, the other bases and edge flags are the same."""
+    of a lone motif (its base is then NaN); critical points, the other bases and edge flags are the same.
+    ``bases=False`` (with ``measure=False``): no bases either (NaN): only the saddles at which the pruning can
+    merge are computed (:func:`skidsim.texture.saddles._saddles`, ``merging``); the motifs, their critical
+    points and edge flags are the same."""
+    if not (bases or not measure):
+        raise ValueError("segment: bases=False needs measure=False (the volumes are measured below the bases)")
     labels, n, sink, peaks = _catchment_basins(d, keep_peaks)
     flat = d.ravel()
     crit_val = flat[sink]  # basin k (0-based) -> its minimum
     t = float(threshold_mm)
-    a, b, sad = _saddles(labels, d, n)
+    a, b, sad = _saddles(labels, d, n, None if bases else (crit_val, t))
     motif_root, a, b, sad = _contract_leaves(a, b, sad, crit_val, t)
     roots, motif_of_basin = np.unique(motif_root, return_inverse=True)
     m = roots.size
     crit = crit_val[roots]
-    # base: lowest saddle to a different motif
-    ma, mb = motif_of_basin[a], motif_of_basin[b]
-    diff = ma != mb
-    base = np.full(m, np.inf)
-    np.minimum.at(base, ma[diff], sad[diff])
-    np.minimum.at(base, mb[diff], sad[diff])
-    # motif of every point: label k -> motif_of_basin[k - 1], read in blocks of points that stay in cache
-    motif_of_label = np.concatenate((motif_of_basin[:1], motif_of_basin))
     lf = labels.ravel()
-    lone = ~np.isfinite(base)
-    if not measure:
-        base[lone] = np.nan
-        count = vol = np.full(m, np.nan)
+    if not bases:
+        base = count = vol = np.full(m, np.nan)
     else:
-        if lone.any():
-            mx = np.full(m, -np.inf)
-            for s0 in range(0, lf.size, _GATHER_BLOCK):
-                pm = motif_of_label.take(lf[s0 : s0 + _GATHER_BLOCK], mode="clip")
-                np.maximum.at(mx, pm, flat[s0 : s0 + _GATHER_BLOCK])
-            base[lone] = mx[lone]
-        count, vol = _motif_measures(lf, flat, motif_of_label, base, m)
+        base, count, vol = _bases_and_measures(a, b, sad, motif_of_basin, lf, flat, m, measure)
     area = count * dx * dy
     vol = vol * dx * dy
     border = np.unique(np.concatenate([labels[0, :], labels[-1, :], labels[:, 0], labels[:, -1]]))
@@ -139,6 +129,30 @@ def segment(
         labels=labels if keep_labels else np.empty(0, np.int32),
         peaks=peaks,
     )
+
+
+def _bases_and_measures(a, b, sad, motif_of_basin, lf, flat, m, measure):
+    """Each motif's base (its lowest saddle to a different motif; a lone motif: its highest point, NaN without
+    ``measure``), its number of points and its ``sum(max(base - d, 0))`` (NaN without ``measure``)."""
+    ma, mb = motif_of_basin[a], motif_of_basin[b]
+    diff = ma != mb
+    base = np.full(m, np.inf)
+    np.minimum.at(base, ma[diff], sad[diff])
+    np.minimum.at(base, mb[diff], sad[diff])
+    lone = ~np.isfinite(base)
+    if not measure:
+        base[lone] = np.nan
+        return base, np.full(m, np.nan), np.full(m, np.nan)
+    # motif of every point: label k -> motif_of_basin[k - 1], read in blocks of points that stay in cache
+    motif_of_label = np.concatenate((motif_of_basin[:1], motif_of_basin))
+    if lone.any():
+        mx = np.full(m, -np.inf)
+        for s0 in range(0, lf.size, _GATHER_BLOCK):
+            pm = motif_of_label.take(lf[s0 : s0 + _GATHER_BLOCK], mode="clip")
+            np.maximum.at(mx, pm, flat[s0 : s0 + _GATHER_BLOCK])
+        base[lone] = mx[lone]
+    count, vol = _motif_measures(lf, flat, motif_of_label, base, m)
+    return base, count, vol
 
 
 def _motif_measures(lf, flat, motif_of_label, base, m):

@@ -69,25 +69,26 @@ def _padded_spectrum(z: np.ndarray, workers: int, shape: tuple[int, int]) -> np.
     return sfft.fft(spec, axis=0, workers=workers, overwrite_x=True)
 
 
-def _padded_power(z: np.ndarray, workers: int, max_lag_fraction: float):
+def _padded_power(z: np.ndarray, workers: int, max_lag_fraction: float, keep_power: bool = True):
     """|F|^2 of the zero-padded rfft2 of the mean-subtracted heights, the same values as a complex array (imaginary
     parts zero; the input of :class:`_AcfRows`, which overwrites it), the padded shape and the lag limits
     ``(Ly, Lx)`` (see :func:`autocorrelation`). ``|F|^2 = re^2 + im^2`` (each square rounded, then the sum) is
-    formed in chunks of rows in the spectrum's own array and written back into it."""
+    formed in chunks of rows in the spectrum's own array and written back into it. Without ``keep_power`` the
+    real array of |F|^2 is not kept (None; the complex one holds the same values)."""
     rows, cols = z.shape
     ly = int(np.floor(max_lag_fraction * (rows - 1)))
     lx = int(np.floor(max_lag_fraction * (cols - 1)))
     shape = (sfft.next_fast_len(rows + ly, real=True), sfft.next_fast_len(cols + lx, real=True))
     spec = _padded_spectrum(z, workers, shape)
-    power = np.empty(spec.shape)
+    power = np.empty(spec.shape) if keep_power else np.empty((min(_FFT_ROWS, spec.shape[0]), spec.shape[1]))
     for r0 in range(0, spec.shape[0], _FFT_ROWS):
         r1 = min(r0 + _FFT_ROWS, spec.shape[0])
-        p, sp = power[r0:r1], spec[r0:r1]
+        p, sp = (power[r0:r1] if keep_power else power[: r1 - r0]), spec[r0:r1]
         parts = sp.view(np.float64)  # re, im, re, im, ... of each row
         np.square(parts, out=parts)
         np.add(parts[:, 0::2], parts[:, 1::2], out=p)
         np.copyto(sp, p)  # real part p, imaginary part 0
-    return power, spec, shape, ly, lx
+    return (power if keep_power else None), spec, shape, ly, lx
 
 
 class _AcfRows:
@@ -252,13 +253,15 @@ def spatial_parameters(
     std_step_deg: float = 0.5,
     workers: int = 1,
     max_lag_fraction: float = 0.5,
+    direction: bool = True,
 ) -> SpatialResult:
-    """Sal (mm), Str, Std (deg) of a complete height array (mm); see the module docstring."""
+    """Sal (mm), Str, Std (deg) of a complete height array (mm); see the module docstring. ``direction=False``:
+    Sal and Str alone (Std NaN; the same Sal and Str, without the angular power spectrum)."""
     if on_border not in ("nan", "bound"):
         raise ValueError(f"on_border must be 'nan' or 'bound', got {on_border!r}")
     rows, cols = z.shape
-    power, cpower, shape, ly, lx = _padded_power(z, workers, max_lag_fraction)
-    std = texture_direction(power, shape, dx, dy, std_step_deg)
+    power, cpower, shape, ly, lx = _padded_power(z, workers, max_lag_fraction, keep_power=direction)
+    std = texture_direction(power, shape, dx, dy, std_step_deg) if direction else np.nan
     del power
     acf_rows = _AcfRows(cpower, shape, rows, cols, ly, lx, workers)
     del cpower
