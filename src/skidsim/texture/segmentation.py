@@ -101,7 +101,7 @@ def segment(
     t = float(threshold_mm)
     a, b, sad = _saddles(labels, d, n, None if bases else (crit_val, t))
     motif_root, a, b, sad = _contract_leaves(a, b, sad, crit_val, t)
-    roots, motif_of_basin = np.unique(motif_root, return_inverse=True)
+    roots, motif_of_basin = _roots_and_ranks(motif_root)
     m = roots.size
     crit = crit_val[roots]
     lf = labels.ravel()
@@ -129,6 +129,16 @@ def segment(
         labels=labels if keep_labels else np.empty(0, np.int32),
         peaks=peaks,
     )
+
+
+def _roots_and_ranks(unit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(unit, return_inverse=True)`` of the pruning's unit of every basin (each value a basin that is
+    its own unit), without a sort: the roots ascending and each basin's rank among them."""
+    is_root = unit == np.arange(unit.size)
+    roots = np.flatnonzero(is_root)
+    rank = np.cumsum(is_root, dtype=np.intp)
+    rank -= 1
+    return roots, rank.take(unit)
 
 
 def _bases_and_measures(a, b, sad, motif_of_basin, lf, flat, m, measure):
