@@ -229,7 +229,7 @@ def deepest_motifs(
             del lab
             flooded += region.size
             if flooded > flood_budget * d.size:
-                return segment(d, t, 1.0, 1.0).critical[:count]
+                return segment(d, t, 1.0, 1.0, measure=False, bases=False).critical[:count]
             tied = markers[r0:r1, c0:c1][region & (win == v)]
             merged = (
                 (win[region] < v).any()  # a lower point: its descent ends in a deeper basin of the region
