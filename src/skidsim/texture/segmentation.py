@@ -93,7 +93,7 @@ def segment(
     ``bases=False`` (with ``measure=False``): no bases either (NaN): only the saddles at which the pruning can
     merge are computed (:func:`skidsim.texture.saddles._saddles`, ``merging``); the motifs, their critical
     points and edge flags are the same."""
-    if not (bases or not measure):
+    if measure and not bases:
         raise ValueError("segment: bases=False needs measure=False (the volumes are measured below the bases)")
     labels, n, sink, peaks = _catchment_basins(d, keep_peaks)
     flat = d.ravel()
