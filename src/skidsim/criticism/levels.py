@@ -78,7 +78,7 @@ def level_data(residuals: pd.DataFrame, options: DiagnosisOptions) -> dict:
             ids_m, bins_m, M = level_matrix(residuals, level, options.speed_bin_kmh, value="measured")
             out[level].measured = M if (ids_m == site_ids and np.array_equal(bins_m, bins)) else None
     if not out:
-        raise InputError("residuals", "at least 4 sites with residuals at one level")
+        raise InputError("residuals", f"at least {MIN_LEVEL_SITES} sites with residuals at one level")
     return out
 
 
