@@ -346,7 +346,57 @@ def test_spatial_parameters_identical(field, first_window, on_border, monkeypatc
     for new, ref in ((sp.Sal, sal), (sp.Str, stri), (sp.Std, std)):
         assert new == ref or (np.isnan(new) and np.isnan(ref))
     alone = spatial.spatial_parameters(z, 0.05, 0.04, on_border=on_border, direction=False)  # Sal and Str only
-    assert_same(alone.decay_mm, lengths)
-    for new, ref in ((alone.Sal, sal), (alone.Str, stri)):
-        assert new == ref or (np.isnan(new) and np.isnan(ref))
+    assert_close_decays(alone, sal, stri, lengths)
     assert np.isnan(alone.Std)
+
+
+def assert_close_decays(got, sal, stri, lengths, rtol=1e-12):
+    """``direction=False`` against the reference: the same NaN pattern, values within the FFT's rounding."""
+    np.testing.assert_array_equal(np.isnan(got.decay_mm), np.isnan(lengths))
+    np.testing.assert_allclose(got.decay_mm, lengths, rtol=rtol, equal_nan=True)
+    for new, ref in ((got.Sal, sal), (got.Str, stri)):
+        assert (np.isnan(new) and np.isnan(ref)) or new == pytest.approx(ref, rel=rtol)
+
+
+def along_y(rows, cols):
+    """Grooves across the rows (heights vary along y only, plus a little noise): the ACF stays above 0.2 along x."""
+    return np.ascontiguousarray(grooves(cols, rows).T)
+
+
+@pytest.mark.parametrize(
+    "field,window,taken",
+    [
+        (lambda: pavement(300, 280, 10, corr=4.0), 128, True),  # the region well inside 128 lags
+        (lambda: pavement(300, 280, 10, corr=4.0), 24, True),  # ... and inside 24 (rounded up to a fast length)
+        (lambda: pavement(400, 360, 11, corr=25.0), 8, False),  # long correlation: reaches the window's border
+        (lambda: pavement(400, 360, 11, corr=25.0), 200, True),  # the window is the whole domain (max_lag 0.5)
+        (lambda: grooves(200, 260), 16, False),  # no crossing along the grooves (y): the region spans every row
+        (lambda: along_y(200, 260), 16, False),  # ... along x: every column of the window
+        (lambda: pavement(240, 300, 2, quantum=0.01), 40, True),  # 0.01 mm codes
+    ],
+)
+@pytest.mark.parametrize("on_border", ["nan", "bound"])
+def test_sal_str_from_the_small_padding(field, window, taken, on_border, monkeypatch):
+    """``direction=False`` pads by ``_FIRST_WINDOW_LAGS`` only where the region above s lies inside those lags
+    (else the domain's padding): Sal, Str and every decay length as the reference's up to the FFT's rounding;
+    the small padding is used exactly where the region fits it."""
+    monkeypatch.setattr(spatial, "_FIRST_WINDOW_LAGS", window)
+    z = field()
+    sal, stri, _, lengths = ref_spatial_parameters(z, 0.05, 0.04, on_border=on_border)
+    pads = []
+    real = spatial._padded_power
+
+    def spy(*args, **kw):
+        out = real(*args, **kw)
+        pads.append((kw.get("pad"), out[2]))
+        return out
+
+    monkeypatch.setattr(spatial, "_padded_power", spy)
+    got = spatial.spatial_parameters(z, 0.05, 0.04, on_border=on_border, direction=False)
+    assert_close_decays(got, sal, stri, lengths)
+    rows, cols = z.shape
+    small = pads[0][1]
+    assert pads[0][0] == (window, window) and small[0] >= rows + min(window, (rows - 1) // 2)
+    assert len(pads) == (1 if taken else 2)  # the domain's padding only where the small one is not enough
+    if taken and window < (rows - 1) // 2:
+        assert small[0] < rows + (rows - 1) // 2  # a smaller transform than the domain's

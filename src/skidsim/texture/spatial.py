@@ -11,8 +11,9 @@ Conventions (docs/texture.md):
   shortest decay length; Str = Sal / longest decay length.
 * **Border**: a direction that does not cross ``s`` before leaving the lag domain (half the scan extent by
   default, ``max_lag_fraction = 0.5``: beyond it fewer than half the points overlap and the unbiased estimator
-  is noisy; the zero padding is sized to that domain) has no decay length. If no direction crosses, Sal is NaN;
-  if some direction does not cross, Str is NaN (``on_border="nan"``, default) or the bound
+  is noisy; the zero padding is sized to that domain; Sal and Str alone, ``direction=False``, pad by fewer lags
+  where the region above ``s`` fits them: :func:`_decays_in_window`) has no decay length. If no direction
+  crosses, Sal is NaN; if some direction does not cross, Str is NaN (``on_border="nan"``, default) or the bound
   Sal / (longest measured length) (``on_border="bound"``).
 * **Std** (deg): the direction, counter-clockwise from +x with +y along increasing row index, of the maximum of
   the angular power spectrum: the sum of |F|^2 (power spectrum of the zero-padded heights) over radial
@@ -69,16 +70,23 @@ def _padded_spectrum(z: np.ndarray, workers: int, shape: tuple[int, int]) -> np.
     return sfft.fft(spec, axis=0, workers=workers, overwrite_x=True)
 
 
-def _padded_power(z: np.ndarray, workers: int, max_lag_fraction: float, keep_power: bool = True):
+def _padded_power(
+    z: np.ndarray, workers: int, max_lag_fraction: float, keep_power: bool = True, pad: tuple[int, int] | None = None
+):
     """|F|^2 of the zero-padded rfft2 of the mean-subtracted heights, the same values as a complex array (imaginary
     parts zero; the input of :class:`_AcfRows`, which overwrites it), the padded shape and the lag limits
     ``(Ly, Lx)`` (see :func:`autocorrelation`). ``|F|^2 = re^2 + im^2`` (each square rounded, then the sum) is
     formed in chunks of rows in the spectrum's own array and written back into it. Without ``keep_power`` the
-    real array of |F|^2 is not kept (None; the complex one holds the same values)."""
+    real array of |F|^2 is not kept (None; the complex one holds the same values).
+
+    ``pad = (py, px)``: at least ``py`` rows and ``px`` columns of zeros instead of ``(Ly, Lx)``; the lag limits
+    returned are then the lags free of wrap-around, ``min(Ly, padded rows - rows)`` and the same along x."""
     rows, cols = z.shape
     ly = int(np.floor(max_lag_fraction * (rows - 1)))
     lx = int(np.floor(max_lag_fraction * (cols - 1)))
-    shape = (sfft.next_fast_len(rows + ly, real=True), sfft.next_fast_len(cols + lx, real=True))
+    py, px = (ly, lx) if pad is None else (min(ly, pad[0]), min(lx, pad[1]))
+    shape = (sfft.next_fast_len(rows + py, real=True), sfft.next_fast_len(cols + px, real=True))
+    ly, lx = min(ly, shape[0] - rows), min(lx, shape[1] - cols)
     spec = _padded_spectrum(z, workers, shape)
     power = np.empty(spec.shape) if keep_power else np.empty((min(_FFT_ROWS, spec.shape[0]), spec.shape[1]))
     for r0 in range(0, spec.shape[0], _FFT_ROWS):
@@ -243,6 +251,28 @@ def texture_direction(amp: np.ndarray, shape: tuple[int, int], dx: float, dy: fl
     return float((np.argmax(dens) + 0.5) * step_deg)
 
 
+def _decays_in_window(z, dx, dy, s, n_angles, workers, max_lag_fraction):
+    """The decay lengths of :func:`spatial_parameters` from a zero padding of only ``_FIRST_WINDOW_LAGS`` lags
+    per axis (rounded up to a fast FFT length): ``(angles, lengths)``, or None where the region above ``s`` (with
+    the crop's margin) reaches the border of the lags that padding keeps free of wrap-around (and that border is
+    not the lag domain's). Every lag it computes is the same sum of products as with the domain's padding (the
+    linear ACF is exact for lags up to the padding), so the crop and the decay lengths are the same up to the
+    FFT's rounding (other transform lengths): relative differences of order 1e-15."""
+    rows, cols = z.shape
+    pad = (_FIRST_WINDOW_LAGS, _FIRST_WINDOW_LAGS)
+    _, cpower, shape, ky, kx = _padded_power(z, workers, max_lag_fraction, keep_power=False, pad=pad)
+    ly = int(np.floor(max_lag_fraction * (rows - 1)))
+    lx = int(np.floor(max_lag_fraction * (cols - 1)))
+    win = _AcfRows(cpower, shape, rows, cols, ky, kx, workers)(ky)
+    del cpower
+    ra, rb, ca, cb = _central_crop(win, ky, kx, s)
+    inside_y = ky == ly or (ra > 0 and rb < win.shape[0])
+    inside_x = kx == lx or (ca > 0 and cb < win.shape[1])
+    if not (inside_y and inside_x):
+        return None
+    return _decay_lengths_in_crop(win[ra:rb, ca:cb], ra + ly - ky, ca + lx - kx, ly, lx, dx, dy, s, n_angles, 0.25)
+
+
 def spatial_parameters(
     z: np.ndarray,
     dx: float,
@@ -256,29 +286,35 @@ def spatial_parameters(
     direction: bool = True,
 ) -> SpatialResult:
     """Sal (mm), Str, Std (deg) of a complete height array (mm); see the module docstring. ``direction=False``:
-    Sal and Str alone (Std NaN; the same Sal and Str, without the angular power spectrum)."""
+    Sal and Str alone (Std NaN), without the angular power spectrum and, where the region of the ACF above ``s``
+    lies well inside the first ``_FIRST_WINDOW_LAGS`` lags, from a zero padding of only those lags
+    (:func:`_decays_in_window`): the same Sal and Str up to the FFT's rounding (relative 1e-15)."""
     if on_border not in ("nan", "bound"):
         raise ValueError(f"on_border must be 'nan' or 'bound', got {on_border!r}")
-    rows, cols = z.shape
-    power, cpower, shape, ly, lx = _padded_power(z, workers, max_lag_fraction, keep_power=direction)
-    std = texture_direction(power, shape, dx, dy, std_step_deg) if direction else np.nan
-    del power
-    acf_rows = _AcfRows(cpower, shape, rows, cols, ly, lx, workers)
-    del cpower
-    # Only the rows of the ACF around the region above s are needed (decay_lengths' crop). Rows |ky| <= k are
-    # computed for a growing k until that region (with the crop's margin) ends inside them; then the region,
-    # the crop and every decay length are those of the whole ACF (a 4-connected region that does not reach the
-    # first or last row of the window cannot continue outside it).
-    k = min(ly, _FIRST_WINDOW_LAGS)
-    while True:
-        win = acf_rows(k)
-        ra, rb, ca, cb = _central_crop(win, k, lx, s)
-        if k == ly or (ra > 0 and rb < win.shape[0]):
-            break
-        k = min(ly, 4 * k)
-    crop = win[ra:rb, ca:cb]
-    del win, acf_rows
-    ang, lengths = _decay_lengths_in_crop(crop, ra + ly - k, ca, ly, lx, dx, dy, s, n_angles, 0.25)
+    found = None if direction else _decays_in_window(z, dx, dy, s, n_angles, workers, max_lag_fraction)
+    std = np.nan
+    if found is None:
+        rows, cols = z.shape
+        power, cpower, shape, ly, lx = _padded_power(z, workers, max_lag_fraction, keep_power=direction)
+        std = texture_direction(power, shape, dx, dy, std_step_deg) if direction else np.nan
+        del power
+        acf_rows = _AcfRows(cpower, shape, rows, cols, ly, lx, workers)
+        del cpower
+        # Only the rows of the ACF around the region above s are needed (decay_lengths' crop). Rows |ky| <= k are
+        # computed for a growing k until that region (with the crop's margin) ends inside them; then the region,
+        # the crop and every decay length are those of the whole ACF (a 4-connected region that does not reach
+        # the first or last row of the window cannot continue outside it).
+        k = min(ly, _FIRST_WINDOW_LAGS)
+        while True:
+            win = acf_rows(k)
+            ra, rb, ca, cb = _central_crop(win, k, lx, s)
+            if k == ly or (ra > 0 and rb < win.shape[0]):
+                break
+            k = min(ly, 4 * k)
+        crop = win[ra:rb, ca:cb]
+        del win, acf_rows
+        found = _decay_lengths_in_crop(crop, ra + ly - k, ca, ly, lx, dx, dy, s, n_angles, 0.25)
+    ang, lengths = found
     within = bool(np.isfinite(lengths).all())
     if not np.isfinite(lengths).any():
         return SpatialResult(np.nan, np.nan, std, False, ang, lengths)
