@@ -112,7 +112,7 @@ def _jump_to_roots(ptr: np.ndarray) -> np.ndarray:
     while active.size:
         nx = ptr.take(ptr.take(active, mode="clip"), mode="clip")
         ptr[active] = nx
-        active = active[ptr.take(nx, mode="clip") != nx]
+        active = active.take(np.flatnonzero(ptr.take(nx, mode="clip") != nx))  # gathers: faster than a mask
     return ptr
 
 
@@ -167,10 +167,11 @@ def _catchment_basins(d: np.ndarray, peaks: bool = False):
     flat_markers = markers.ravel()
     # every point points to its steepest-descent neighbour, a sink to itself; doubling ends at the sinks
     ptr = _jump_to_roots(ptr)
-    labels = flat_markers.take(ptr, mode="clip").reshape(d.shape)
+    labels = np.empty(ptr.size, dtype=np.int32)
+    for s0 in range(0, ptr.size, _GATHER_BLOCK):  # blocks: the indices' conversion to intp stays in cache
+        np.take(flat_markers, ptr[s0 : s0 + _GATHER_BLOCK], out=labels[s0 : s0 + _GATHER_BLOCK], mode="clip")
+    labels = labels.reshape(d.shape)
     del ptr
-    if labels.dtype != np.int32:
-        labels = labels.astype(np.int32)
     return labels, n, first, (peak[0] if peaks else None)
 
 

@@ -66,8 +66,15 @@ def developed_area(z: np.ndarray, dx: float, dy: float) -> float:
 
 
 def sdr(z: np.ndarray, dx: float, dy: float) -> float:
-    """Developed interfacial area ratio in % (ISO 25178-2 eq. D.15; see module docstring)."""
-    return hybrid_parameters(z, dx, dy)["Sdr"]
+    """Developed interfacial area ratio in % (ISO 25178-2 eq. D.15; see module docstring); the same bits as
+    :func:`hybrid_parameters`' ``Sdr``, without Sdq."""
+    return _sdr_of(np.diff(z, axis=1), np.diff(z, axis=0), z.shape, dx, dy)
+
+
+def _sdr_of(gx: np.ndarray, gy: np.ndarray, shape: tuple[int, int], dx: float, dy: float) -> float:
+    rows, cols = shape
+    a0 = (cols - 1) * dx * (rows - 1) * dy
+    return (_developed_area_of(gx, gy, dx, dy) / a0 - 1.0) * 100.0
 
 
 def hybrid_parameters(z: np.ndarray, dx: float, dy: float, area: bool = True) -> dict[str, float]:
@@ -76,7 +83,5 @@ def hybrid_parameters(z: np.ndarray, dx: float, dy: float, area: bool = True) ->
     gy = np.diff(z, axis=0)  # (R-1, C)
     out = {"Sdq": _sdq_of(gx, gy, dx, dy)}
     if area:
-        rows, cols = z.shape
-        a0 = (cols - 1) * dx * (rows - 1) * dy
-        out["Sdr"] = (_developed_area_of(gx, gy, dx, dy) / a0 - 1.0) * 100.0
+        out["Sdr"] = _sdr_of(gx, gy, z.shape, dx, dy)
     return out

@@ -46,11 +46,14 @@ class _Binning:
         self.bins = z.size // _SELECT_POINTS_PER_BIN
         t = np.subtract(z, lo)
         t *= self.bins / (hi - lo)
-        idx = t.astype(np.intp)  # truncation: monotone, so a higher bin never holds a lower height
+        # truncation: monotone, so a higher bin never holds a lower height; bin ``bins`` (the maximum, or heights
+        # within a rounding of it) is counted with bin ``bins - 1``, as a clamp of the indices would put them
+        idx = t.astype(np.intp)
         del t
-        np.minimum(idx, self.bins - 1, out=idx)
         self.idx = idx
-        self.counts = np.bincount(idx, minlength=self.bins)
+        counts = np.bincount(idx, minlength=self.bins + 1)
+        counts[self.bins - 1] += counts[self.bins]
+        self.counts = counts[: self.bins]
         self.cum = np.cumsum(self.counts)  # points in bins <= b
 
     def select(self, ranks: np.ndarray) -> np.ndarray:
@@ -58,9 +61,10 @@ class _Binning:
         if self.sorted_all is not None:
             return self.sorted_all[ranks]
         b = np.searchsorted(self.cum, ranks, side="right")  # the bin holding each rank
-        need = np.zeros(self.bins, dtype=bool)
+        need = np.zeros(self.bins + 1, dtype=bool)  # entry ``bins``: the points counted with bin ``bins - 1``
         need[b] = True
-        ub = np.flatnonzero(need)
+        need[self.bins] = need[self.bins - 1]
+        ub = np.flatnonzero(need[: self.bins])
         if self.counts[ub].sum() > _SELECT_SHARE_MAX * self.z.size:  # ties or few distinct heights: sort them all
             self.sorted_all = np.sort(self.z)
             del self.idx, self.counts, self.cum

@@ -135,10 +135,10 @@ def _saddles(
             if merging is not None:
                 keep = np.maximum(low1.take(x), low1.take(y))
                 np.subtract(p, keep, out=keep)
-                keep = keep < t
-                x, y, p = x[keep], y[keep], p[keep]
-                if x.size == 0:
+                kept = np.flatnonzero(keep < t)  # then gathers: faster than three boolean selections
+                if kept.size == 0:
                     continue
+                x, y, p = x.take(kept), y.take(kept), p.take(kept)
             key = np.minimum(x, y).astype(np.int64)
             key *= base
             key += np.maximum(x, y)
