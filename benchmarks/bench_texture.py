@@ -67,7 +67,7 @@ from skidsim.texture import (
     separate_bands,
 )
 from skidsim.texture.features import ten_point_height
-from skidsim.texture.height import height_parameters
+from skidsim.texture.height import sa_sq
 from skidsim.texture.hybrid import sdr
 from skidsim.texture.material_ratio import core_height
 from skidsim.texture.mpd import mean_profile_depth
@@ -282,7 +282,7 @@ def rss_mb() -> float:
 
 def ours_subset(s: Surface, workers: int) -> dict:
     z = s.heights - s.heights.mean()
-    hp = height_parameters(z)
+    hp = sa_sq(z)  # Sa and Sq alone, as surfalize's: not the moments and extremes of height_parameters
     sp = spatial_parameters(z, s.dx, s.dy, workers=workers, direction=False)  # Sal and Str, as surfalize's: no Std
     sk = core_height(z)  # Sk alone, as surfalize's Sk: not the volumes and ratios of material_ratio_parameters
     fp = ten_point_height(z, s.dx, s.dy, exclude_edge=True)  # surfalize's convention: edge motifs dropped

@@ -184,6 +184,8 @@ def test_height_parameters_are_the_whole_array_sums(name, blocks, request):
     assert got.keys() == ref.keys()
     for k, v in ref.items():
         assert got[k] == v or (np.isnan(v) and np.isnan(got[k])), k
+    alone = height.sa_sq(z)  # Sa and Sq alone: the same bits
+    assert alone == {"Sa": ref["Sa"], "Sq": ref["Sq"]}
 
 
 # ---- furrows: sliding maxima by doubling, blocks of profiles ---------------------------------------------------

@@ -14,7 +14,7 @@ _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)
 _EIGHT = np.ones((3, 3), dtype=bool)
 _BLOCK_POINTS = 8 * 2448  # points per block of rows in catchment_basins (a few arrays of it stay in L1/L2 cache)
 _WHOLE_ROUNDS_ABOVE = 16  # catchment_basins: whole-array doubling rounds while > 1/16 of the points move
-_GATHER_BLOCK = 1 << 16  # entries per gather of a whole doubling round (the indices stay in cache)
+_GATHER_BLOCK = 1 << 18  # entries per gather of a whole doubling round and of the labels (the indices stay in cache)
 
 
 def _descent(d: np.ndarray, peaks: bool = False):

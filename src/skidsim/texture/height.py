@@ -22,6 +22,27 @@ def finite_mean(z: np.ndarray):
     return None
 
 
+def sa_sq(z: np.ndarray) -> dict[str, float]:
+    """``{"Sa": mm, "Sq": mm}`` of a complete height array (mm) alone: the same bits as :func:`height_parameters`'
+    (the same block sums of ``|c|`` and ``c^2``), each block of heights about the mean formed in a buffer, without
+    the whole arrays of ``c`` and ``c^2``, the third and fourth moments and the extremes."""
+    flat = np.ravel(z)
+    n = flat.size
+    mean = flat.mean()
+    tree = pairwise_tree(0, n)
+    s2, s1 = {}, {}
+    parts = leaves(tree)
+    size = max(length for _, length in parts)
+    cbuf, buf = np.empty(size), np.empty(size)
+    for leaf in parts:
+        start, length = leaf
+        cb, b = cbuf[:length], buf[:length]
+        np.subtract(flat[start : start + length], mean, out=cb)
+        s1[leaf] = np.abs(cb, out=b).sum()
+        s2[leaf] = np.multiply(cb, cb, out=b).sum()
+    return {"Sa": float(tree_sum(tree, s1) / n), "Sq": float(np.sqrt(tree_sum(tree, s2) / n))}
+
+
 def height_parameters(z: np.ndarray) -> dict[str, float]:
     """Height parameters of a complete (no NaN) height array in mm: Sq, Ssk, Sku, Sp, Sv, Sz, Sa.
 
