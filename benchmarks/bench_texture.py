@@ -4,8 +4,9 @@
 Prints: wall time (median over --repeats) and peak RSS of the whole stage (despeckle, fill, form, bands, all
 parameters on raw/macro/micro, MPD), per-step times, the CPU seconds of the workflow's ``texture_parameters``
 step (every parameter on raw, macro and micro, one thread; median over --repeats), and for the subset Sa Sq Sdr
-Sal Str Sk S10z on each band ours vs surfalize with the ratio (CPU seconds, one thread each). Targets: whole
-stage <= 15 s and <= 2.5 GB on 2 cores; subset >= 15x faster than surfalize (issue 36).
+Sal Str Sk S10z on each band ours vs surfalize with the ratio (CPU seconds, one thread each; the two alternate band
+by band, --repeats times; medians, and the ratio of each run). Targets: whole stage <= 15 s and <= 2.5 GB on 2
+cores; subset >= 15x faster than surfalize (issue 36).
 
 The process first calls ``skidsim.allocator.scan_process_memory`` as the workflow's texture scripts do (glibc's
 heap for every array, NumPy's huge-page advice off); ``--default-malloc`` leaves glibc's and NumPy's defaults.
@@ -503,25 +504,32 @@ def main() -> None:
     print(f"  load average after ours: {os.getloadavg()}")
     if a.no_peer:
         return
-    t_ours = t_peer = 0.0
-    for band in a.bands.split(","):
-        s = b[band]
-        t = time.process_time()
-        o = ours_subset(s, 1)
-        dt_o = time.process_time() - t
-        t = time.process_time()
-        p = peer_subset(s)
-        dt_p = time.process_time() - t
-        t_ours += dt_o
-        t_peer += dt_p
-        rel = {k: (o[k] / p[k] - 1) if p[k] else np.nan for k in o}
-        print(
-            f"  subset {band} (CPU): ours {dt_o:.2f} s, surfalize {dt_p:.2f} s, ratio {dt_p / dt_o:.1f}x; "
-            "relative differences " + ", ".join(f"{k} {v:+.2e}" for k, v in rel.items())
-        )
+    bands = a.bands.split(",")
+    ours_t = {band: [] for band in bands}
+    peer_t = {band: [] for band in bands}
+    for r in range(a.repeats):  # ours and surfalize alternate, band by band
+        for band in bands:
+            s = b[band]
+            t = time.process_time()
+            o = ours_subset(s, 1)
+            ours_t[band].append(time.process_time() - t)
+            t = time.process_time()
+            p = peer_subset(s)
+            peer_t[band].append(time.process_time() - t)
+            if r == 0:
+                rel = {k: (o[k] / p[k] - 1) if p[k] else np.nan for k in o}
+                print(f"  subset {band}: relative differences " + ", ".join(f"{k} {v:+.2e}" for k, v in rel.items()))
+    for band in bands:
+        dt_o, dt_p = statistics.median(ours_t[band]), statistics.median(peer_t[band])
+        print(f"  subset {band} (CPU, median): ours {dt_o:.2f} s, surfalize {dt_p:.2f} s, ratio {dt_p / dt_o:.1f}x")
+    tot_o = [sum(ours_t[band][r] for band in bands) for r in range(a.repeats)]
+    tot_p = [sum(peer_t[band][r] for band in bands) for r in range(a.repeats)]
+    t_ours, t_peer = statistics.median(tot_o), statistics.median(tot_p)
     print(
-        f"subset Sa Sq Sdr Sal Str Sk S10z on {a.bands} (CPU): ours {t_ours:.2f} s, surfalize {t_peer:.2f} s, "
-        f"speed-up {t_peer / t_ours:.1f}x; peak RSS incl. surfalize {rss_mb():.0f} MB"
+        f"subset Sa Sq Sdr Sal Str Sk S10z on {a.bands} (CPU, median of {a.repeats}): ours {t_ours:.2f} s, surfalize "
+        f"{t_peer:.2f} s, speed-up {t_peer / t_ours:.1f}x (per run: "
+        + ", ".join(f"{tp / to:.1f}x" for to, tp in zip(tot_o, tot_p))
+        + f"); peak RSS incl. surfalize {rss_mb():.0f} MB"
     )
     print(f"load average after: {os.getloadavg()}")
 
