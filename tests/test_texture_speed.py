@@ -358,6 +358,19 @@ def assert_close_decays(got, sal, stri, lengths, rtol=1e-12):
         assert (np.isnan(new) and np.isnan(ref)) or new == pytest.approx(ref, rel=rtol)
 
 
+def flat_binder(rows, cols, share=0.67):
+    """A flushed surface as an LS-40 writes it: flat binder on ``share`` of the points, aggregate tops above it,
+    a 0.3 deg tilt, 0.01 mm height codes (mm)."""
+    rng = np.random.default_rng(12)
+    tops = ndimage.gaussian_filter(rng.standard_normal((rows, cols)), 5.0)
+    tops /= tops.std()
+    above = np.maximum(tops - np.quantile(tops, share), 0.0)
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    z = 0.8 * above + 2.618e-4 * xx - 1.414e-4 * yy
+    z = np.round(z / 0.01) * 0.01
+    return z - z.mean()
+
+
 def along_y(rows, cols):
     """Grooves across the rows (heights vary along y only, plus a little noise): the ACF stays above 0.2 along x."""
     return np.ascontiguousarray(grooves(cols, rows).T)
@@ -373,6 +386,7 @@ def along_y(rows, cols):
         (lambda: grooves(200, 260), 16, False),  # no crossing along the grooves (y): the region spans every row
         (lambda: along_y(200, 260), 16, False),  # ... along x: every column of the window
         (lambda: pavement(240, 300, 2, quantum=0.01), 40, True),  # 0.01 mm codes
+        (lambda: flat_binder(240, 300), 40, True),  # 67 % flat binder, tilt, codes
     ],
 )
 @pytest.mark.parametrize("on_border", ["nan", "bound"])
