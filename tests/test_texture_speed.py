@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy import fft as sfft
 from scipy import ndimage
+from test_texture_despeckle import flat_binder_scan  # the flushed scans of the despeckle tests, one builder
 
 from skidsim.texture import basins, pruning, saddles, spatial
 from skidsim.texture import segmentation as seg
@@ -358,17 +359,11 @@ def assert_close_decays(got, sal, stri, lengths, rtol=1e-12):
         assert (np.isnan(new) and np.isnan(ref)) or new == pytest.approx(ref, rel=rtol)
 
 
-def flat_binder(rows, cols, share=0.67):
-    """A flushed surface as an LS-40 writes it: flat binder on ``share`` of the points, aggregate tops above it,
-    a 0.3 deg tilt, 0.01 mm height codes (mm)."""
-    rng = np.random.default_rng(12)
-    tops = ndimage.gaussian_filter(rng.standard_normal((rows, cols)), 5.0)
-    tops /= tops.std()
-    above = np.maximum(tops - np.quantile(tops, share), 0.0)
-    yy, xx = np.mgrid[0:rows, 0:cols]
-    z = 0.8 * above + 2.618e-4 * xx - 1.414e-4 * yy
-    z = np.round(z / 0.01) * 0.01
-    return z - z.mean()
+def flat_binder(rows, cols):
+    """The flushed scan of tests/test_texture_despeckle.py: stones on 67 % flat binder, 0.01 mm codes, a tilt of
+    about 0.3 deg along x and 0.16 deg along y; complete (no dropouts: the ACF needs every point)."""
+    h = flat_binder_scan(0.67, seed=12, shape=(rows, cols), tilt=(5.236e-3, -2.828e-3))
+    return h - h.mean()
 
 
 def along_y(rows, cols):
@@ -386,7 +381,8 @@ def along_y(rows, cols):
         (lambda: grooves(200, 260), 16, False),  # no crossing along the grooves (y): the region spans every row
         (lambda: along_y(200, 260), 16, False),  # ... along x: every column of the window
         (lambda: pavement(240, 300, 2, quantum=0.01), 40, True),  # 0.01 mm codes
-        (lambda: flat_binder(240, 300), 40, True),  # 67 % flat binder, tilt, codes
+        (lambda: flat_binder(240, 300), 64, True),  # 67 % flat binder, tilt, codes
+        (lambda: flat_binder(240, 300), 24, False),  # ... its stones' ACF reaches past 24 lags
     ],
 )
 @pytest.mark.parametrize("on_border", ["nan", "bound"])
