@@ -70,6 +70,11 @@ def _padded_spectrum(z: np.ndarray, workers: int, shape: tuple[int, int]) -> np.
     return sfft.fft(spec, axis=0, workers=workers, overwrite_x=True)
 
 
+def _lag_domain(shape: tuple[int, int], max_lag_fraction: float) -> tuple[int, int]:
+    """``(Ly, Lx)``: the largest lags (points) of the ACF's domain, ``floor(f (n - 1))`` per axis."""
+    return int(np.floor(max_lag_fraction * (shape[0] - 1))), int(np.floor(max_lag_fraction * (shape[1] - 1)))
+
+
 def _padded_power(
     z: np.ndarray, workers: int, max_lag_fraction: float, keep_power: bool = True, pad: tuple[int, int] | None = None
 ):
@@ -82,8 +87,7 @@ def _padded_power(
     ``pad = (py, px)``: at least ``py`` rows and ``px`` columns of zeros instead of ``(Ly, Lx)``; the lag limits
     returned are then the lags free of wrap-around, ``min(Ly, padded rows - rows)`` and the same along x."""
     rows, cols = z.shape
-    ly = int(np.floor(max_lag_fraction * (rows - 1)))
-    lx = int(np.floor(max_lag_fraction * (cols - 1)))
+    ly, lx = _lag_domain(z.shape, max_lag_fraction)
     py, px = (ly, lx) if pad is None else (min(ly, pad[0]), min(lx, pad[1]))
     shape = (sfft.next_fast_len(rows + py, real=True), sfft.next_fast_len(cols + px, real=True))
     ly, lx = min(ly, shape[0] - rows), min(lx, shape[1] - cols)
@@ -261,8 +265,7 @@ def _decays_in_window(z, dx, dy, s, n_angles, workers, max_lag_fraction):
     rows, cols = z.shape
     pad = (_FIRST_WINDOW_LAGS, _FIRST_WINDOW_LAGS)
     _, cpower, shape, ky, kx = _padded_power(z, workers, max_lag_fraction, keep_power=False, pad=pad)
-    ly = int(np.floor(max_lag_fraction * (rows - 1)))
-    lx = int(np.floor(max_lag_fraction * (cols - 1)))
+    ly, lx = _lag_domain(z.shape, max_lag_fraction)
     win = _AcfRows(cpower, shape, rows, cols, ky, kx, workers)(ky)
     del cpower
     ra, rb, ca, cb = _central_crop(win, ky, kx, s)
