@@ -57,13 +57,17 @@ def test_a_texture_model_that_misses_a_curvature_in_mpd_is_named_and_its_extensi
     assert within["rmse_after"] == pytest.approx(within["rmse_before"], abs=1e-12)
 
 
-def test_the_texture_model_candidate_is_one_unit_with_an_exact_max_statistic():
+def test_the_texture_model_candidate_is_one_unit_with_an_exact_min_p():
     """The members of the texture-model candidate share one testing unit (primary family); its p-value is the
-    max-statistic permutation p, never below the smallest member p; on a campaign whose texture model is right the
-    unit is not significant."""
+    single-step minP permutation p, never below the smallest member p; on a campaign whose texture model is right
+    the unit is not significant."""
     causes = screen(campaign(3, None), seed=3)
     tm = [c for c in causes if cr.is_texture_model(c.variable)]
-    assert {c.variable for c in tm} == {"texture_model[nonlinear in mpd_mm]", "texture_model[texture PCs 1-3]"}
+    assert {c.variable for c in tm} == {
+        "texture_model[nonlinear in mpd_mm]",
+        "texture_model[texture PCs 1-3]",
+        "texture_model[texture PCs 1-8]",
+    }
     assert len({c.unit for c in tm}) == 1 and all(c.family == "primary" for c in tm)
     assert tm[0].unit_p >= min(c.p_value for c in tm) - 1e-12 and not any(c.significant for c in tm)
 

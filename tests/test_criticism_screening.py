@@ -191,9 +191,10 @@ def test_texture_clusters_and_families():
         ("temperature_c", "between-site", "x_speed"),
         ("mpd_mm", "within-site", "x_speed"),
         ("mpd_mm", "between-site", "x_speed"),
-        # the texture model as a candidate (one unit: its members share the max-statistic)
+        # the texture model as a candidate (one unit: its members share one minP test)
         ("texture_model[nonlinear in mpd_mm]", "between-site", "main"),
         ("texture_model[texture PCs 1-3]", "between-site", "main"),
+        ("texture_model[texture PCs 1-8]", "between-site", "main"),
     }
     tm = [c for c in causes if c.source == "texture_model"]
     assert len({c.unit for c in tm}) == 1 and len({c.unit_p for c in tm}) == 1

@@ -107,7 +107,8 @@ class Cause:
     or "child" (the texture model x speed between sites, asked only under a significant section x speed effect:
     :func:`skidsim.criticism.texture_tests.texture_speed_tests`); ``unit``: the
     tested unit (the variable itself, or ``cluster:<representative>`` for a texture cluster tested by its
-    max-statistic); ``unit_p``: the unit's permutation p-value (max-statistic p for a cluster);
+    max-statistic, or the texture model's member of the smallest p); ``unit_p``: the unit's permutation p-value
+    (max-statistic p for a cluster, single-step minP p for the texture model's members);
     ``texture_pcs``: for a between-site sites.csv covariate that varies within sections, the number of texture
     principal components its test is conditioned on (the texture-adjusted test,
     :func:`skidsim.criticism.adjustment.texture_adjustment`); -1 for the residual test; ``texture_pcs_cv``: the

@@ -1,8 +1,9 @@
-"""False-discovery control of the screening (docs/model-criticism.md, section 2): testing units (a candidate, or a
-texture cluster tested by its max-statistic) in two families, *primary* (functional form, temperature columns
-between sites, MPD x speed) and *secondary* (the rest), each with a step-up procedure at its share of ``fdr``
-(FDR is subadditive over a partition, so the FDR over units is <= ``fdr``), and a gatekeeper step for the
-section-level explanations of a significant section effect (Yekutieli 2008)."""
+"""False-discovery control of the screening (docs/model-criticism.md, section 2): testing units (a candidate, a
+texture cluster tested by its max-statistic, or the texture model's members tested by minP) in two families,
+*primary* (functional form, temperature columns between sites, MPD x speed) and *secondary* (the rest), each with
+a step-up procedure at its share of ``fdr`` (FDR is subadditive over a partition, so the FDR over units is <=
+``fdr``), and a gatekeeper step for the section-level explanations of a significant section effect (Yekutieli
+2008)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
-from .permutations import permutation_p
+from .permutations import min_p, permutation_p
 
 
 def adjust_pvalues(p, method: str = "bh") -> np.ndarray:
@@ -107,7 +108,7 @@ class Unit:
 
 def testing_units(tests, candidates, texture_family: bool = False, level_clusters: dict | None = None) -> dict:
     """{key: Unit} over the tests: primary singles, the texture-model members (one primary unit per level and
-    kind, tested by their max-statistic), texture clusters (per level and kind), secondary singles. The texture
+    kind, tested by single-step minP), texture clusters (per level and kind), secondary singles. The texture
     clusters and lone texture columns are secondary units, or with ``texture_family`` units of the family
     ``texture``. ``level_clusters``: {level: clusters} where a level's tests see other columns than
     ``candidates.clusters`` were made of (between sites: the columns beyond the prediction model's terms,
@@ -122,7 +123,7 @@ def testing_units(tests, candidates, texture_family: bool = False, level_cluster
     for j, t in enumerate(tests):
         v = t.variable
         clusters, cluster_of = clusters_at[t.level]
-        if t.source == "texture_model":  # the richer texture models: one unit, max-statistic (primary family)
+        if t.source == "texture_model":  # the richer texture models: one unit, minP (primary family)
             key, fam, name = ("texture_model", t.level, t.kind), "primary", None
         elif (
             t.kind == "functional_form"
@@ -141,18 +142,26 @@ def testing_units(tests, candidates, texture_family: bool = False, level_cluster
 
 
 def _unit_pvalues(tests, units: dict, pvals: np.ndarray) -> tuple[dict, np.ndarray]:
-    """Unit p-values (max-statistic for a cluster, which also names the cluster by its top member) and the
-    single-step maxT p (Westfall & Young 1993) of every test within its cluster."""
+    """Unit p-values (max-statistic for a cluster, which also names the cluster by its top member; single-step minP
+    for the texture-model members, whose designs differ in width: :func:`~skidsim.criticism.permutations.min_p`,
+    named by the member of the smallest p) and the single-step maxT (minP) p (Westfall & Young 1993) of every test
+    within its unit."""
     unit_p, wy_p = {}, np.ones(len(tests))
     for key, u in units.items():
         mem = u.members
         if len(mem) == 1:
             unit_p[key] = wy_p[mem[0]] = pvals[mem[0]]
             continue
-        Tmax_perm = np.max(np.stack([tests[j].Tp for j in mem]), axis=0)
         Tobs = np.array([tests[j].T for j in mem])
+        if key[0] == "texture_model":  # members of different widths: minP (each on its own null scale)
+            unit_p[key], adj, k = min_p(Tobs, np.stack([tests[j].Tp for j in mem], axis=1))
+            u.name = tests[mem[k]].variable
+            for j, pj in zip(mem, adj):
+                wy_p[j] = pj
+            continue
+        Tmax_perm = np.max(np.stack([tests[j].Tp for j in mem]), axis=0)
         top = tests[mem[int(np.argmax(Tobs))]].variable
-        u.name = top if key[0] == "texture_model" else f"cluster:{top}"
+        u.name = f"cluster:{top}"
         unit_p[key] = permutation_p(Tobs.max(), Tmax_perm)
         for j, tj in zip(mem, Tobs):
             wy_p[j] = permutation_p(tj, Tmax_perm)

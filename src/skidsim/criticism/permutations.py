@@ -75,3 +75,32 @@ def section_flip_shape(D: np.ndarray, sections: np.ndarray, P: int, rng) -> tupl
 def permutation_p(T: float, Tp: np.ndarray) -> float:
     """Permutation p-value ``(1 + #{T_perm >= T}) / (P + 1)`` (relative tolerance 1e-12 for ties)."""
     return (1 + np.sum(Tp >= T * (1 - 1e-12))) / (len(Tp) + 1)
+
+
+def min_p(Tobs: np.ndarray, Tp: np.ndarray) -> tuple[float, np.ndarray, int]:
+    """Single-step minP over the statistics of one testing unit (Westfall & Young 1993, algorithm 2.8): ``Tobs``
+    (m,) the observed statistics and ``Tp`` (P, m) their values under the same P permutations. Each statistic
+    is put on its own null scale first: its permutation p (:func:`permutation_p`) for the observation and, for
+    permutation b, ``#{a: T_a >= Tp[b, j]} / (P + 1)`` over the P + 1 arrangements a (the observation and the P
+    permutations, b itself among them), the p the same rule gives that permutation. For one statistic the unit p
+    is its :func:`permutation_p`. So
+    statistics with different null distributions (designs of different numbers of columns) enter on one scale,
+    where the max-statistic lets the widest dominate. Returns the unit p ``(1 + #{b: min_j p_bj <= min_j p_j}) /
+    (P + 1)``, each statistic's adjusted p ``(1 + #{b: min_j p_bj <= p_j}) / (P + 1)`` (m,), and the index of the
+    smallest observed p (ties: the largest ``(T - mean Tp) / sd Tp``). The same relative tolerance 1e-12 for
+    ties as :func:`permutation_p`."""
+    Tobs = np.asarray(Tobs, float)
+    Tp = np.asarray(Tp, float)
+    P, m = Tp.shape
+    p_obs = np.array([permutation_p(Tobs[j], Tp[:, j]) for j in range(m)])
+    p_min_perm = np.full(P, np.inf)
+    for j in range(m):
+        srt = np.sort(Tp[:, j])
+        ge = P - np.searchsorted(srt, Tp[:, j] * (1 - 1e-12), side="left")  # #{b': Tp[b'] >= Tp[b]}, b itself too
+        ge = ge + (Tobs[j] >= Tp[:, j] * (1 - 1e-12))  # the observation is one of the P + 1 arrangements
+        np.minimum(p_min_perm, ge / (P + 1), out=p_min_perm)
+    adj = np.array([(1 + np.sum(p_min_perm <= p * (1 + 1e-12))) / (P + 1) for p in p_obs])
+    sd = Tp.std(axis=0)
+    z = np.where(sd > 0, (Tobs - Tp.mean(axis=0)) / np.where(sd > 0, sd, 1.0), 0.0)
+    top = int(np.lexsort((-z, p_obs))[0])
+    return float(adj[top]), adj, top

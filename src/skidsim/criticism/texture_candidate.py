@@ -19,14 +19,19 @@ texture models (*members*), each a 3-column design built from the texture alone,
   z(log micro_Sq) z(log(raw_Sp / raw_Sq))]`` where the table holds these columns: the microtexture where the slider
   touches (on the aggregate tops) rather than averaged over the scan (:func:`_contact_design`);
 * ``texture PCs 1-3``: the three leading principal components of the texture table beyond the prediction
-  model's columns (texture measures the model leaves out),
+  model's columns (texture measures the model leaves out);
+* ``texture PCs 1-k`` (the wide member, k from 4 to ``WIDE_PCS`` = 8): the k leading principal components of the
+  texture columns beyond ``[1, the prediction model's terms]``, ``k = min(8, n_sections - 4, rank)``: a measure
+  the table does not hold (the microtexture where the slider touches) shows as a direction several columns share,
+  not always among the leading three (:func:`_wide_design`),
 
 is tested against the between-site residual (site means, ``main``) by the same nested permutations as every
 covariate, and, where section identity x speed is significant between sites, against the residual's speed profiles
 (``x_speed``: :func:`skidsim.criticism.texture_tests.texture_speed_tests`, a child family of that section effect).
-The members of one kind are one testing unit (``main``: primary family) tested by their max-statistic (all
-members have 3 columns, so their sums of squares share one scale): an exact permutation p-value of "no richer
-texture model explains the residual", and the member with the largest statistic says which measure or which form.
+The members of one kind are one testing unit (``main``: primary family) tested by single-step minP
+(:func:`~skidsim.criticism.permutations.min_p`: each member's statistic on its own permutation scale, as the
+designs differ in width): an exact permutation p-value of "no richer texture model explains the residual", and
+the member with the smallest p (ties: the largest standardised statistic) says which measure or which form.
 
 Friction mu (dimensionless), MPD mm, speeds km/h.
 """
@@ -42,10 +47,14 @@ from .adjustment import basis, lead_design
 
 #: Prefix of the variable name of a texture-model candidate (``texture_model[<member>]``).
 TEXTURE_MODEL = "texture_model"
-#: Columns of every member's design (one scale for the max-statistic).
+#: Columns of the design of every member but the wide one.
 MEMBER_DF = 3
 #: The name of the member of the leading texture principal components (beyond the prediction model's terms).
 PCS_MEMBER = f"texture PCs 1-{MEMBER_DF}"
+#: At most this many leading texture PCs in the wide member (:func:`_wide_design`).
+WIDE_PCS = 8
+#: The wide member leaves at least this many of the sections' degrees of freedom free (k <= n_sections - this).
+WIDE_SECTION_MARGIN = 4
 
 
 @dataclass(frozen=True)
@@ -127,15 +136,49 @@ def _contact_design(C: pd.DataFrame) -> np.ndarray | None:
     return np.column_stack([peak, micro_peak, on_tops])
 
 
+def _wide_design(C: pd.DataFrame, texture_columns, lead: tuple, n_sections: int) -> np.ndarray | None:
+    """The wide member's design (n_sites, k): the ``k`` leading principal components of the numeric texture
+    columns ``texture_columns`` of ``C`` (each standardised over the sites) taken beyond ``[1, lead columns]``
+    (:func:`~skidsim.criticism.adjustment.lead_design`; ``[1]`` without lead terms), each standardised; ``k =
+    min(WIDE_PCS, n_sections - WIDE_SECTION_MARGIN, rank)``. None when ``k <= MEMBER_DF`` (the PCs member holds
+    as many) or no column is usable (a column with a missing value or no spread is left out)."""
+    cols = [c for c in texture_columns if c in C.columns]
+    if not cols:
+        return None
+    X = C[cols].apply(pd.to_numeric, errors="coerce").to_numpy(float)
+    ok = np.isfinite(X).all(axis=0) & (X.std(axis=0) > 0)
+    if not ok.any():
+        return None
+    X = (X[:, ok] - X[:, ok].mean(axis=0)) / X[:, ok].std(axis=0)
+    L = lead_design(C, lead) if lead else None
+    B = np.ones((len(C), 1)) if L is None else np.c_[np.ones(len(C)), L]
+    Xb = X - B @ np.linalg.lstsq(B, X, rcond=None)[0]
+    U, sv, _ = np.linalg.svd(Xb, full_matrices=False)
+    rank = int((sv > 1e-8 * sv[0]).sum()) if sv.size and sv[0] > 0 else 0
+    k = min(WIDE_PCS, int(n_sections) - WIDE_SECTION_MARGIN, rank)
+    if k <= MEMBER_DF:
+        return None
+    return np.column_stack([_std(U[:, j]) for j in range(k)])
+
+
 def texture_members(
-    site_ids, cov: pd.DataFrame, mpd: str | None, scores: np.ndarray, lead: tuple = (), n_lead: int = 0
+    site_ids,
+    cov: pd.DataFrame,
+    mpd: str | None,
+    scores: np.ndarray,
+    lead: tuple = (),
+    n_lead: int = 0,
+    texture_columns=(),
+    n_sections: int = 0,
 ) -> list[TextureMember]:
     """The richer texture models of the sites ``site_ids`` (order kept).
 
     ``cov``: the candidate covariates (one row per site); ``mpd``: the MPD column (mm) or None; ``scores``: the
     texture model's score table of these sites (:func:`~skidsim.criticism.adjustment.texture_model_scores`: the
     prediction model's ``n_lead`` columns ``lead`` first, then texture PCs). Axes whose cubic design is almost
-    the same as an earlier one's (|r| >= 0.95 of the linear columns) are dropped."""
+    the same as an earlier one's (|r| >= 0.95 of the linear columns) are dropped. ``texture_columns``: the
+    numeric texture columns of ``cov`` and ``n_sections``: the number of sections of these sites, for the wide
+    member (:func:`_wide_design`; none without them)."""
     C = cov.loc[list(site_ids)]
     axes = []
     if lead:
@@ -174,7 +217,25 @@ def texture_members(
                 D,
             )
         )
+    wide = _wide_design(C, texture_columns, tuple(lead), n_sections)
+    if wide is not None:
+        members.append(
+            TextureMember(
+                f"texture PCs 1-{wide.shape[1]}",
+                "many texture measures together: the leading texture principal components beyond the prediction "
+                "model's texture terms (measures it leaves out, spread over several directions)",
+                wide,
+            )
+        )
     return members
+
+
+def member_arguments(cands, site_ids) -> dict:
+    """The keywords of :func:`texture_members` that come from the candidate set ``cands`` for the sites
+    ``site_ids``: its numeric texture columns and the number of their sections."""
+    tex = tuple(c for c in cands.covariates.columns if cands.info[c] == ("texture", "numeric"))
+    n_sections = int(cands.section_of.reindex(list(site_ids)).nunique())
+    return {"texture_columns": tex, "n_sections": n_sections}
 
 
 def member_basis(member: TextureMember) -> np.ndarray:
@@ -237,7 +298,9 @@ def texture_model_term(cause, residuals, sites, texture_wide, pcs, lead=(), role
     ids, _, _ = level_matrix(residuals, "between-site", speed_bin_kmh)
     scores = scores_for(ids, pcs, cands.covariates, cands.info)
     n_lead = int(pcs.attrs.get("n_lead", 0)) if pcs is not None and set(pcs.index) == set(ids) else 0
-    members = texture_members(ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead)
+    members = texture_members(
+        ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead, **member_arguments(cands, ids)
+    )
     m = next((m for m in members if m.variable == cause.variable), None)
     if m is None:
         return None

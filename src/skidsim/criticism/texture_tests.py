@@ -16,7 +16,7 @@ from .crossval import cv_sse_design, folds
 from .levels import CandidateTest, LevelContext, LevelData, level_data
 from .options import DiagnosisOptions
 from .permutations import perm_stats
-from .texture_candidate import TextureMember, member_basis, section_share, texture_members
+from .texture_candidate import TextureMember, member_arguments, member_basis, section_share, texture_members
 
 
 def texture_model_tests(ctx: LevelContext, members: list[TextureMember], kind: str = "main") -> list[CandidateTest]:
@@ -72,24 +72,23 @@ def texture_speed_tests(
     section 2, "The texture model as a candidate cause"): asked only where section identity x speed between
     sites is significant in ``causes`` (the screening's causes), as a child family of that section effect
     (Yekutieli 2008; the gatekeeper of :func:`skidsim.criticism.fdr.adjust` for the section-level columns): the
-    members' x_speed tests (:func:`texture_model_tests`) are one unit tested by their max-statistic, each
-    member's p_adjusted ``max(unit p, its single-step maxT p, the section effect's p_adjusted)``. Their permutations are
+    members' x_speed tests (:func:`texture_model_tests`) are one unit tested by single-step minP
+    (:func:`~skidsim.criticism.permutations.min_p`: the members' designs differ in width), each member's p_adjusted
+    ``max(unit p, its single-step minP p, the section effect's p_adjusted)``. Their permutations are
     the level's nested permutations (no new draws: every other test is unchanged). Family ``child``."""
     from .fdr import Adjustment, Unit
-    from .permutations import permutation_p
+    from .permutations import min_p, permutation_p
 
     parent = [c for c in causes if c.section_id and c.significant and c.level == "between-site" and c.kind == "x_speed"]
     tests = texture_model_tests(ctx, members, "x_speed") if parent else []
     if not tests:
         return []
     p = np.array([permutation_p(t.T, t.Tp) for t in tests])
-    Tmax = np.max(np.stack([t.Tp for t in tests]), axis=0)
-    Tobs = np.array([t.T for t in tests])
-    unit_p = permutation_p(Tobs.max(), Tmax)
+    unit_p, adj, top = min_p(np.array([t.T for t in tests]), np.stack([t.Tp for t in tests], axis=1))
     gate = min(c.p_adjusted for c in parent)
-    padj = np.array([max(unit_p, permutation_p(t, Tmax), gate) for t in Tobs])
+    padj = np.array([max(unit_p, a, gate) for a in adj])
     key = ("texture_model_child", "between-site", "x_speed")
-    unit = Unit("child", tests[int(np.argmax(Tobs))].variable, list(range(len(tests))))
+    unit = Unit("child", tests[top].variable, list(range(len(tests))))
     adjustment = Adjustment(p, padj, [key] * len(tests), {key: unit}, {key: unit_p})
     return make_causes(tests, adjustment, cands, options, P)
 
@@ -102,7 +101,10 @@ def _members(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None, l
         return []
     scores = scores_for(ctx.data.site_ids, pcs, cands.covariates, cands.info)
     n_lead = int(pcs.attrs.get("n_lead", 0)) if pcs is not None and set(pcs.index) == set(ctx.data.site_ids) else 0
-    return texture_members(ctx.data.site_ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead)
+    ids = ctx.data.site_ids
+    return texture_members(
+        ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead, **member_arguments(cands, ids)
+    )
 
 
 def lead_basis(data: LevelData, cov: pd.DataFrame, lead) -> np.ndarray | None:
