@@ -82,13 +82,12 @@ def min_p(Tobs: np.ndarray, Tp: np.ndarray) -> tuple[float, np.ndarray, int]:
     (m,) the observed statistics and ``Tp`` (P, m) their values under the same P permutations. Each statistic
     is put on its own null scale first: its permutation p (:func:`permutation_p`) for the observation and, for
     permutation b, ``#{a: T_a >= Tp[b, j]} / (P + 1)`` over the P + 1 arrangements a (the observation and the P
-    permutations, b itself among them), the p the same rule gives that permutation. For one statistic the unit p
-    is its :func:`permutation_p`. So
-    statistics with different null distributions (designs of different numbers of columns) enter on one scale,
-    where the max-statistic lets the widest dominate. Returns the unit p ``(1 + #{b: min_j p_bj <= min_j p_j}) /
-    (P + 1)``, each statistic's adjusted p ``(1 + #{b: min_j p_bj <= p_j}) / (P + 1)`` (m,), and the index of the
-    smallest observed p (ties: the largest ``(T - mean Tp) / sd Tp``). The same relative tolerance 1e-12 for
-    ties as :func:`permutation_p`."""
+    permutations, b itself among them), the p the same rule gives that permutation. So statistics with different
+    null distributions (designs of different numbers of columns) enter on one scale, where the max-statistic lets
+    the widest dominate; for one statistic the unit p is its :func:`permutation_p`. Returns the unit p
+    ``(1 + #{b: min_j p_bj <= min_j p_j}) / (P + 1)``, each statistic's adjusted p ``(1 + #{b: min_j p_bj <=
+    p_j}) / (P + 1)`` (m,), and the index of the smallest observed p (ties: the largest ``(T - mean Tp) / sd
+    Tp``). The same relative tolerance 1e-12 for ties as :func:`permutation_p`."""
     Tobs = np.asarray(Tobs, float)
     Tp = np.asarray(Tp, float)
     P, m = Tp.shape

@@ -6,7 +6,7 @@ A between-site residual that clusters by section is either a property of the sec
 carry (section identity, a section-level column such as the mix or the traffic), or a misfit of the texture
 model: a form that is nonlinear in a texture measure the model uses linearly (friction against MPD), or texture
 measures the model leaves out. Before the first is named, the second is tested: a small, fixed set of richer
-texture models (*members*), each a 3-column design built from the texture alone,
+texture models (*members*), each a design built from the texture alone (3 columns but for the wide member),
 
 * ``nonlinear in <axis>``: ``[z, z^2, z^3]`` of one texture axis ``z`` (standardised): the prediction model's own
   texture columns (as the regression used them, e.g. ``log(profile_MPD)``) and the MPD column (mm); a cubic in
@@ -59,8 +59,9 @@ WIDE_SECTION_MARGIN = 4
 
 @dataclass(frozen=True)
 class TextureMember:
-    """One richer texture model: its ``name`` (``nonlinear in <axis>`` or ``texture PCs 1-3``), the words a
-    pavement engineer reads (``words``) and its design (n_sites, 3), each column standardised over the sites."""
+    """One richer texture model: its ``name`` (``nonlinear in <axis>``, ``texture PCs 1-3``, ...), the words a
+    pavement engineer reads (``words``) and its design (n_sites, 3; the wide member n_sites, k), each column
+    standardised over the sites."""
 
     name: str
     words: str
