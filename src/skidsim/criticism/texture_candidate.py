@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .adjustment import basis, lead_design
+from .adjustment import basis, lead_design, residualise
 
 #: Prefix of the variable name of a texture-model candidate (``texture_model[<member>]``).
 TEXTURE_MODEL = "texture_model"
@@ -153,7 +153,7 @@ def _wide_design(C: pd.DataFrame, texture_columns, lead: tuple, n_sections: int)
     X = (X[:, ok] - X[:, ok].mean(axis=0)) / X[:, ok].std(axis=0)
     L = lead_design(C, lead) if lead else None
     B = np.ones((len(C), 1)) if L is None else np.c_[np.ones(len(C)), L]
-    Xb = X - B @ np.linalg.lstsq(B, X, rcond=None)[0]
+    Xb = residualise(X, B)
     U, sv, _ = np.linalg.svd(Xb, full_matrices=False)
     rank = int((sv > 1e-8 * sv[0]).sum()) if sv.size and sv[0] > 0 else 0
     k = min(WIDE_PCS, int(n_sections) - WIDE_SECTION_MARGIN, rank)
