@@ -275,3 +275,9 @@ def scores_for(ids, table: pd.DataFrame | None, cov: pd.DataFrame, info: dict) -
     if table is not None and set(table.index) == set(ids):
         return table.loc[list(ids)].to_numpy(float)
     return texture_scores(cov.loc[list(ids)], info)
+
+
+def lead_count(ids, table: pd.DataFrame | None) -> int:
+    """How many of the leading columns of :func:`scores_for`'s scores of ``ids`` are the prediction model's own
+    (``table.attrs["n_lead"]``): 0 when the scores are computed over ``ids`` (``table`` None or of other sites)."""
+    return int(table.attrs.get("n_lead", 0)) if table is not None and set(table.index) == set(ids) else 0

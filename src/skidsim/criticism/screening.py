@@ -29,7 +29,7 @@ import pandas as pd
 
 from .adjustment import adjusted_basis, basis, leverage_corrected, residualise, texture_adjustment
 from .causes import Cause, make_causes
-from .covariates import CandidateRoles, CandidateSet, candidate_set, scores_for
+from .covariates import CandidateRoles, CandidateSet, candidate_set, lead_count, scores_for
 from .crossval import cv_sse, folds, is_section_nested
 from .extensions import ifi_speed_constant_kmh
 from .fdr import adjust, family_sizes, has_texture_family, permutation_count
@@ -74,7 +74,7 @@ def texture_adjusted(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame |
     scores = scores_for(ctx.data.site_ids, pcs, cands.covariates, cands.info)
     if scores.shape[1] == 0:
         return None
-    n_lead = int(pcs.attrs.get("n_lead", 0)) if pcs is not None and set(pcs.index) == set(ctx.data.site_ids) else 0
+    n_lead = lead_count(ctx.data.site_ids, pcs)
     k, N, k_cv = texture_adjustment(M, scores, ctx.sec, n_lead=n_lead)
     if k < 1:
         return None

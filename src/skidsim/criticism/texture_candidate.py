@@ -231,12 +231,26 @@ def texture_members(
     return members
 
 
-def member_arguments(cands, site_ids) -> dict:
-    """The keywords of :func:`texture_members` that come from the candidate set ``cands`` for the sites
-    ``site_ids``: its numeric texture columns and the number of their sections."""
+def members_of(cands, site_ids, pcs: pd.DataFrame | None, lead=()) -> list[TextureMember]:
+    """The members (:func:`texture_members`) of the sites ``site_ids`` from the candidate set ``cands`` (its
+    covariates, MPD column, numeric texture columns and sections), the texture model's score table ``pcs``
+    (:func:`~skidsim.criticism.covariates.scores_for`) and the prediction columns ``lead``: the one construction
+    that the screening tests and the extension of a texture-model cause rebuilds."""
+    from .covariates import lead_count, scores_for
+
+    scores = scores_for(site_ids, pcs, cands.covariates, cands.info)
     tex = tuple(c for c in cands.covariates.columns if cands.info[c] == ("texture", "numeric"))
     n_sections = int(cands.section_of.reindex(list(site_ids)).nunique())
-    return {"texture_columns": tex, "n_sections": n_sections}
+    return texture_members(
+        site_ids,
+        cands.covariates,
+        cands.mpd,
+        scores,
+        tuple(lead),
+        lead_count(site_ids, pcs),
+        texture_columns=tex,
+        n_sections=n_sections,
+    )
 
 
 def member_basis(member: TextureMember) -> np.ndarray:
@@ -288,7 +302,7 @@ def texture_model_term(cause, residuals, sites, texture_wide, pcs, lead=(), role
     """The :class:`~skidsim.criticism.extensions.TextureModelTerm` of a texture-model cause: the member's design
     over the between-site sites, rebuilt exactly as the screening built it (same score table ``pcs``, same
     prediction columns ``lead``, same MPD column). None when the cause is not a texture-model candidate."""
-    from .covariates import CandidateRoles, candidate_set, scores_for
+    from .covariates import CandidateRoles, candidate_set
     from .extensions import TextureModelTerm
     from .residuals import level_matrix
 
@@ -297,11 +311,7 @@ def texture_model_term(cause, residuals, sites, texture_wide, pcs, lead=(), role
     roles = CandidateRoles() if roles is None else roles
     cands = candidate_set(sites, texture_wide, roles, 0.8)
     ids, _, _ = level_matrix(residuals, "between-site", speed_bin_kmh)
-    scores = scores_for(ids, pcs, cands.covariates, cands.info)
-    n_lead = int(pcs.attrs.get("n_lead", 0)) if pcs is not None and set(pcs.index) == set(ids) else 0
-    members = texture_members(
-        ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead, **member_arguments(cands, ids)
-    )
+    members = members_of(cands, ids, pcs, lead)
     m = next((m for m in members if m.variable == cause.variable), None)
     if m is None:
         return None

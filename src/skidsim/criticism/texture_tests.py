@@ -11,12 +11,12 @@ import pandas as pd
 
 from .adjustment import lead_design, residualise
 from .causes import Cause, make_causes
-from .covariates import CandidateSet, scores_for, texture_clusters
+from .covariates import CandidateSet, texture_clusters
 from .crossval import cv_sse_design, folds
 from .levels import CandidateTest, LevelContext, LevelData, level_data
 from .options import DiagnosisOptions
 from .permutations import perm_stats
-from .texture_candidate import TextureMember, member_arguments, member_basis, section_share, texture_members
+from .texture_candidate import TextureMember, member_basis, members_of, section_share
 
 
 def texture_model_tests(ctx: LevelContext, members: list[TextureMember], kind: str = "main") -> list[CandidateTest]:
@@ -99,12 +99,7 @@ def _members(ctx: LevelContext, cands: CandidateSet, pcs: pd.DataFrame | None, l
         return []
     if not any(cands.info[c][0] == "texture" for c in cands.covariates.columns):
         return []
-    scores = scores_for(ctx.data.site_ids, pcs, cands.covariates, cands.info)
-    n_lead = int(pcs.attrs.get("n_lead", 0)) if pcs is not None and set(pcs.index) == set(ctx.data.site_ids) else 0
-    ids = ctx.data.site_ids
-    return texture_members(
-        ids, cands.covariates, cands.mpd, scores, tuple(lead), n_lead, **member_arguments(cands, ids)
-    )
+    return members_of(cands, ctx.data.site_ids, pcs, lead)
 
 
 def lead_basis(data: LevelData, cov: pd.DataFrame, lead) -> np.ndarray | None:
