@@ -3,11 +3,13 @@
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/diagnosis_rates.py --seeds 0-19 --jobs 2 \
         [--generators default,chips,spectral] [--kinds none,section_column,...] [--n-permutations 4999] \
         [--n-boot 200] [--screen-only] [--beyond-size MU] [--out results/diagnosis_rates] [--cache DIR] [--designs N] \
-        [--texture-share S] [--fdr Q] [--trace-from KMH] [--temperature-range LO,HI]
+        [--texture-share S] [--fdr Q] [--cluster-rho R] [--trace-from KMH] [--temperature-range LO,HI]
+        [--table harness|workflow]
 
 Campaigns: tests/diagnosis_rate_campaigns.py (36 sites, 12 sections; the FE replaced by a per-site calibration of
 the exponential-decay law, the texture model by a physics2@dft-like least squares on log MPD and log micro Sq; the
-texture of chips and spectral from the generators' own surfaces, cached per design in ``--cache``; the DFT traces
+texture of chips and spectral from the generators' own surfaces, cached per design in ``--cache``: the harness's 27
+columns, or with ``--table workflow`` every column of the workflow's texture table, about 120; the DFT traces
 from ``--trace-from``, 20 km/h by default, up to 80 km/h; the sections' temperatures in ``--temperature-range``,
 18-22 deg C by default). Per generator
 x kind x seed the whole diagnosis (:func:`skidsim.criticism.diagnose`, ``DiagnosisOptions(seed=seed, n_boot=...,
@@ -62,6 +64,7 @@ from diagnosis_rate_campaigns import (  # noqa: E402 (tests/ on the path first)
     KINDS,
     N_DESIGNS,
     SECTION_LATENT,
+    TABLES,
     design_of,
     generator_of,
 )
@@ -347,6 +350,21 @@ def main(argv=None):
         "family's (default: DiagnosisOptions' own, under which they stay secondary units)",
     )
     ap.add_argument(
+        "--table",
+        choices=TABLES,
+        default="harness",
+        help="the chips and spectral texture tables: the harness's 27 columns (default) or every column of the "
+        "workflow's texture table (about 120: tests/diagnosis_rate_campaigns.py::workflow_table_of_surface)",
+    )
+    ap.add_argument(
+        "--cluster-rho",
+        type=float,
+        default=None,
+        metavar="R",
+        help="DiagnosisOptions.cluster_rho: |Spearman rho| of every pair of texture columns in one testing unit "
+        "(default: DiagnosisOptions' own)",
+    )
+    ap.add_argument(
         "--fdr",
         type=float,
         default=None,
@@ -392,15 +410,19 @@ def main(argv=None):
         ap.error(f"--designs: expected 0 (a design per seed) or a positive count, got {a.designs}")
     t0 = time.perf_counter()
     designs = [  # the texture tables first (cached): the campaigns only read them
-        (g, d, a.cache)
+        (g, d, a.cache, None, a.table)
         for g in sorted({generator_of(g) for g in gens} - {"default"})
         for d in sorted({design_of(s, a.designs) for s in seeds})
     ]
     for _ in mapped(texture_of_design, designs, a.jobs):
         pass
     # DiagnosisOptions fields set on the command line; the others keep the dataclass's defaults (their one home)
-    overrides = {f: v for f, v in (("texture_share", a.texture_share), ("fdr", a.fdr)) if v is not None}
-    campaign = {"trace_from_kmh": a.trace_from}
+    overrides = {
+        f: v
+        for f, v in (("texture_share", a.texture_share), ("fdr", a.fdr), ("cluster_rho", a.cluster_rho))
+        if v is not None
+    }
+    campaign = {"trace_from_kmh": a.trace_from, "texture_table": a.table}
     if a.temperature_range is not None:
         lo, _, hi = a.temperature_range.partition(",")
         campaign["temperature_section_c"] = (float(lo), float(hi))

@@ -193,6 +193,7 @@ def derive_tables(sites: pd.DataFrame, measured: pd.DataFrame, tex: pd.DataFrame
     # simulated speeds) on the first N_PCS principal components of the standardised texture parameters, times the
     # training sites' mean normalised curve shape.
     X = tex.drop(columns="site").to_numpy(float)
+    X = X[:, np.isfinite(X).all(axis=0) & (np.ptp(X, axis=0) > 0)]  # constant or incomplete columns carry no PC
     X = (X - X.mean(0)) / X.std(0)
     Y = simulated.pivot(index="site", columns="speed_kmh", values="sn").loc[site].to_numpy(float)
     level = Y.mean(axis=1)

@@ -18,7 +18,9 @@ Texture sources and friction truths (the friction law of each source is its own,
   ``mu_s - mu_k = 0.08 + 0.14 MPD``, ``alpha = 0.08 (0.8 / MPD)^0.5`` s/m) times a site factor exp(N(0, 0.02));
 * ``chips`` / ``spectral``: the texture of :mod:`skidsim.generators` (clean surfaces rendered by the generator's
   own texture model for its section and site draws, on small scans, :data:`SCAN`), measured by
-  :func:`texture_table_of_surface`; friction the generator's own model (``chips``: PIARC/IFI, ``spectral``: Rado;
+  :func:`texture_table_of_surface` (27 columns; ``texture_table="workflow"``: every column of the workflow's texture
+  table, :func:`workflow_table_of_surface`); friction the generator's own model (``chips``: PIARC/IFI,
+  ``spectral``: Rado;
   :mod:`skidsim.generators.friction_models`) with the generator's site random factors on the level and on Sp
   (:data:`skidsim.generators.campaign.COMMON`) but not its section factors: those are a hidden section-level effect
   of their own, so with them a campaign would hide two effects. ``chips+sectionlatent`` /
@@ -106,6 +108,9 @@ TABLE_COLUMNS = (
     + [f"{b}_{k}" for b in ("raw", "macro", "micro") for k in ("Sq", "Sa", "Sp", "Sv", "Ssk", "Sku", "Sdq", "Sdr")]
     + ["micro_Sq_top", "micro_Sdq_top"]
 )
+#: The texture tables of a generator's design (:func:`generator_texture`): the harness's :data:`TABLE_COLUMNS`, or
+#: every column of the workflow's texture table.
+TABLES = ("harness", "workflow")
 #: effect constants (size 1)
 POLISH_PER_MSA = 0.015
 STATION_PER_FT = 0.0003
@@ -216,27 +221,62 @@ def texture_table_of_surface(clean: np.ndarray, dx_mm: float, micro_cut_mm: floa
     raw, micro = bands["raw"].heights, bands["micro"].heights
     for k, v in contact_parameters(raw, micro, dx_mm, dx_mm, TextureOptions().contact_top_pct).items():
         row[f"micro_{k}"] = v
+    return row, _hidden_measures(meas, raw, micro)
+
+
+def _hidden_measures(meas: dict, raw: np.ndarray, micro: np.ndarray) -> dict:
+    """The measures a campaign's friction reads and its table does not hold: the generator's micro_sq_mm, and the
+    micro band's energy on the tops within :data:`CONTACT_DEPTH_MM` of the highest ones (mm, module docstring)."""
     top = raw >= np.quantile(raw, 0.995) - CONTACT_DEPTH_MM
-    hidden = {
+    return {
         "micro_sq_mm": meas["micro_sq_mm"],
         "micro_contact": float(np.sqrt(np.mean(micro**2 * top))),
         "contact_share": float(top.mean()),
     }
-    return row, hidden
 
 
-def generator_texture(generator: str, design: int, cache_dir=None, shape=None) -> pd.DataFrame:
+def workflow_table_of_surface(clean: np.ndarray, dx_mm: float, micro_cut_mm: float = 0.5) -> tuple[dict, dict]:
+    """(table row, hidden measures) of one clean height map (mm), the row the workflow's texture table holds: every
+    areal parameter of the raw, macro and micro bands (:func:`skidsim.texture.parameters.areal_parameters`,
+    ``TextureOptions()`` defaults, as the ``texture_parameters`` rule computes them; columns ``<band>_<name>``) and
+    the cross-band contact-zone parameters (``micro_Sq_top``, ``micro_Sdq_top``), with profile_MPD (mm) as
+    :func:`texture_table_of_surface` gives it; the bands and the hidden measures as there (Butterworth at
+    ``max(micro_cut_mm, 5 dx)`` and 50 mm)."""
+    from skidsim.generators.campaign import texture_measures
+    from skidsim.surface import Surface
+    from skidsim.texture import TextureOptions
+    from skidsim.texture.filters import separate_bands
+    from skidsim.texture.parameters import areal_parameters, cross_band_parameters
+
+    opt = TextureOptions()
+    meas = texture_measures(clean, dx_mm, micro_cut_mm)
+    cut = max(micro_cut_mm, 5 * dx_mm)
+    bands = separate_bands(Surface(clean, dx_mm, dx_mm, name="clean"), macro=(cut, 50.0))
+    row = {"profile_MPD": meas["mpd_mm"]}
+    for band in ("raw", "macro", "micro"):
+        row.update({f"{band}_{k}": v for k, (v, _) in areal_parameters(bands[band], band, opt).items()})
+    for band, values in cross_band_parameters(bands, opt).items():
+        row.update({f"{band}_{k}": v for k, (v, _) in values.items()})
+    return row, _hidden_measures(meas, bands["raw"].heights, bands["micro"].heights)
+
+
+def generator_texture(generator: str, design: int, cache_dir=None, shape=None, table: str = "harness") -> pd.DataFrame:
     """Texture of design ``design`` of ``generator`` (36 sites, 12 sections): the generator's section draws
     (:func:`skidsim.generators.design_campaign`, seed ``20261125 + design``) and its clean surfaces (the site's
     texture stream, as :func:`skidsim.generators.generate_site` draws it) on ``shape`` (default :data:`SCAN`).
-    Columns: site, section, the table (:func:`texture_table_of_surface`) and the hidden measures prefixed
-    ``hidden_``. Cached as CSV in ``cache_dir`` when given."""
+    Columns: site, section, the table and the hidden measures prefixed ``hidden_``. ``table``: ``harness``, the
+    :data:`TABLE_COLUMNS` (:func:`texture_table_of_surface`), or ``workflow``, every column the workflow's texture
+    table holds (:func:`workflow_table_of_surface`; about 120, 4-5x the computing time). Cached as CSV in
+    ``cache_dir`` when given (the workflow table under a name of its own)."""
     from skidsim.generators import campaign as gc
 
+    if table not in TABLES:
+        raise ValueError(f"table: expected one of {TABLES}, got {table!r}")
     shape = tuple(shape or SCAN[generator])
     path = None
     if cache_dir is not None:
-        path = Path(cache_dir) / f"{generator}_{design}_{shape[0]}x{shape[1]}.csv"
+        suffix = "" if table == "harness" else f"_{table}"
+        path = Path(cache_dir) / f"{generator}_{design}_{shape[0]}x{shape[1]}{suffix}.csv"
         if path.exists():
             cached = pd.read_csv(path)
             if set(TABLE_COLUMNS) <= set(cached.columns):  # a cache of an older table is computed again
@@ -254,7 +294,8 @@ def generator_texture(generator: str, design: int, cache_dir=None, shape=None) -
         sd = cfg["site_factor_sd"]
         site_f = {k: float(np.exp(s_tex.normal(0, sd))) for k in ("protrusion_factor", "macro_factor", "micro_factor")}
         clean, _ = gc.TEXTURES[cfg["texture"]].render(s_tex, shape, dx, sec, site_f, cfg["texture_params"])
-        row, hidden = texture_table_of_surface(clean, dx, cfg["friction"]["micro_cut_mm"])
+        of_surface = texture_table_of_surface if table == "harness" else workflow_table_of_surface
+        row, hidden = of_surface(clean, dx, cfg["friction"]["micro_cut_mm"])
         rows.append(
             {"site": site, "section": str(r["section"]), **row, **{f"hidden_{k}": v for k, v in hidden.items()}}
         )
@@ -398,6 +439,7 @@ def generate(
     trace_step_kmh: float = 4.0,
     texture: pd.DataFrame | None = None,
     n_designs: int = N_DESIGNS,
+    texture_table: str = "harness",
     trace_from_kmh: float = 20.0,
     temperature_section_c: tuple = TEMP_SECTION_C,
 ):
@@ -408,9 +450,9 @@ def generate(
     (:func:`beyond_texture_model`), effect_rms_mu: RMS of the
     effect over sites and 20-70 km/h about its campaign mean per speed). ``texture``: a precomputed
     :func:`generator_texture` table (else design :func:`design_of` (``seed``, ``n_designs``) is computed or read
-    from ``cache_dir``). ``trace_from_kmh``: the DFT trace's lowest speed (km/h; 20 by default: no trace point below
-    20 km/h; :func:`diagnosis_campaigns.measured_points`); ``temperature_section_c``: the range (deg C) of
-    the sections' temperatures (:func:`site_design`)."""
+    from ``cache_dir``; ``texture_table``: which table, :data:`TABLES`). ``trace_from_kmh``: the DFT trace's lowest
+    speed (km/h; 20 by default: no trace point below 20 km/h; :func:`diagnosis_campaigns.measured_points`);
+    ``temperature_section_c``: the range (deg C) of the sections' temperatures (:func:`site_design`)."""
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
     if source not in SOURCES:
@@ -418,7 +460,11 @@ def generate(
     if texture is None:
         gen = generator_of(source)
         design = design_of(seed, n_designs)
-        texture = default_texture(seed) if gen == "default" else generator_texture(gen, design, cache_dir)
+        texture = (
+            default_texture(seed)
+            if gen == "default"
+            else generator_texture(gen, design, cache_dir, table=texture_table)
+        )
     tex = texture.reset_index(drop=True)
     n = len(tex)
     sites = site_design(seed, tex["site"], tex["section"], tuple(temperature_section_c))

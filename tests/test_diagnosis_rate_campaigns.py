@@ -229,11 +229,34 @@ def test_a_design_per_seed_gives_every_campaign_its_own_texture(monkeypatch, chi
         rc.design_of(3, -1)
     asked = []
 
-    def fake_texture(generator, design, cache_dir=None, shape=None):
-        asked.append((generator, design))
+    def fake_texture(generator, design, cache_dir=None, shape=None, table="harness"):
+        asked.append((generator, design, table))
         return chips_texture
 
     monkeypatch.setattr(rc, "generator_texture", fake_texture)
     rc.generate("chips", "none", 6, trace_step_kmh=0)
-    rc.generate("spectral+sectionlatent", "none", 6, trace_step_kmh=0, n_designs=0)
-    assert asked == [("chips", 2), ("spectral", 6)]
+    rc.generate("spectral+sectionlatent", "none", 6, trace_step_kmh=0, n_designs=0, texture_table="workflow")
+    assert asked == [("chips", 2, "harness"), ("spectral", 6, "workflow")]
+
+
+def test_the_workflow_table_holds_the_harness_columns_with_the_same_values():
+    """The workflow table of a generator surface (every areal parameter of the three bands, as the texture_parameters
+    rule computes them) against the harness's own computation of its 27 columns (height parameters, Sdq and Sdr by
+    their functions, the contact zone): the same values, the same hidden measures, and many more columns."""
+    from skidsim.generators import campaign as gc
+
+    cfg = gc.generator_config("spectral", {"seed": 5, "n_sites": 3, "n_sections": 1, "shape": [160, 160]})
+    dx = float(cfg["spacing_mm"])
+    r = gc.design_campaign(cfg).iloc[0]
+    rng = np.random.default_rng(gc._seq(cfg, str(r["site"])).spawn(4)[0])
+    sec = {k[4:]: float(r[k]) for k in r.keys() if k.startswith("sec_") and "factor" not in k}
+    ones = dict.fromkeys(("protrusion_factor", "macro_factor", "micro_factor"), 1.0)
+    clean, _ = gc.TEXTURES[cfg["texture"]].render(rng, (160, 160), dx, sec, ones, cfg["texture_params"])
+    cut = cfg["friction"]["micro_cut_mm"]
+    harness, hidden = rc.texture_table_of_surface(clean, dx, cut)
+    workflow, hidden_w = rc.workflow_table_of_surface(clean, dx, cut)
+    assert set(harness) == set(rc.TABLE_COLUMNS) and set(harness) < set(workflow)
+    assert len(workflow) > 100
+    for k in rc.TABLE_COLUMNS:
+        assert workflow[k] == pytest.approx(harness[k], rel=1e-9, abs=1e-12), k
+    assert hidden_w == hidden
