@@ -199,17 +199,12 @@ def texture_table_of_surface(clean: np.ndarray, dx_mm: float, micro_cut_mm: floa
     Butterworth bands at ``max(micro_cut_mm, 5 dx)`` and 50 mm) Sq, Sa, Sp, Sv (mm), Ssk, Sku, Sdq, Sdr (%), and
     the micro band's contact-zone micro_Sq_top (mm) and micro_Sdq_top (:mod:`skidsim.texture.contact`).
     Hidden: the generator's micro_sq_mm (what its friction law reads) and micro_contact (mm, module docstring)."""
-    from skidsim.generators.campaign import texture_measures
-    from skidsim.surface import Surface
     from skidsim.texture import TextureOptions
     from skidsim.texture.contact import contact_parameters
-    from skidsim.texture.filters import separate_bands
     from skidsim.texture.height import height_parameters
     from skidsim.texture.hybrid import sdq, sdr
 
-    meas = texture_measures(clean, dx_mm, micro_cut_mm)
-    cut = max(micro_cut_mm, 5 * dx_mm)
-    bands = separate_bands(Surface(clean, dx_mm, dx_mm, name="clean"), macro=(cut, 50.0))
+    meas, bands = _measures_and_bands(clean, dx_mm, micro_cut_mm)
     row = {"profile_MPD": meas["mpd_mm"]}
     for band in ("raw", "macro", "micro"):
         z = bands[band].heights
@@ -222,6 +217,18 @@ def texture_table_of_surface(clean: np.ndarray, dx_mm: float, micro_cut_mm: floa
     for k, v in contact_parameters(raw, micro, dx_mm, dx_mm, TextureOptions().contact_top_pct).items():
         row[f"micro_{k}"] = v
     return row, _hidden_measures(meas, raw, micro)
+
+
+def _measures_and_bands(clean: np.ndarray, dx_mm: float, micro_cut_mm: float) -> tuple[dict, dict]:
+    """The generator's own measures of a clean height map (mm; :func:`~skidsim.generators.campaign.texture_measures`)
+    and its raw / macro / micro bands (form removed, Butterworth at ``max(micro_cut_mm, 5 dx)`` and 50 mm)."""
+    from skidsim.generators.campaign import texture_measures
+    from skidsim.surface import Surface
+    from skidsim.texture.filters import separate_bands
+
+    cut = max(micro_cut_mm, 5 * dx_mm)
+    bands = separate_bands(Surface(clean, dx_mm, dx_mm, name="clean"), macro=(cut, 50.0))
+    return texture_measures(clean, dx_mm, micro_cut_mm), bands
 
 
 def _hidden_measures(meas: dict, raw: np.ndarray, micro: np.ndarray) -> dict:
@@ -242,16 +249,11 @@ def workflow_table_of_surface(clean: np.ndarray, dx_mm: float, micro_cut_mm: flo
     the cross-band contact-zone parameters (``micro_Sq_top``, ``micro_Sdq_top``), with profile_MPD (mm) as
     :func:`texture_table_of_surface` gives it; the bands and the hidden measures as there (Butterworth at
     ``max(micro_cut_mm, 5 dx)`` and 50 mm)."""
-    from skidsim.generators.campaign import texture_measures
-    from skidsim.surface import Surface
     from skidsim.texture import TextureOptions
-    from skidsim.texture.filters import separate_bands
     from skidsim.texture.parameters import areal_parameters, cross_band_parameters
 
     opt = TextureOptions()
-    meas = texture_measures(clean, dx_mm, micro_cut_mm)
-    cut = max(micro_cut_mm, 5 * dx_mm)
-    bands = separate_bands(Surface(clean, dx_mm, dx_mm, name="clean"), macro=(cut, 50.0))
+    meas, bands = _measures_and_bands(clean, dx_mm, micro_cut_mm)
     row = {"profile_MPD": meas["mpd_mm"]}
     for band in ("raw", "macro", "micro"):
         row.update({f"{band}_{k}": v for k, (v, _) in areal_parameters(bands[band], band, opt).items()})
@@ -286,6 +288,7 @@ def generator_texture(generator: str, design: int, cache_dir=None, shape=None, t
         {"seed": 20261125 + int(design), "n_sites": 36, "n_sections": N_SECTIONS, "shape": list(shape)},
     )
     dx = float(cfg["spacing_mm"])
+    of_surface = texture_table_of_surface if table == "harness" else workflow_table_of_surface
     rows = []
     for _, r in gc.design_campaign(cfg).iterrows():
         site = str(r["site"])
@@ -294,7 +297,6 @@ def generator_texture(generator: str, design: int, cache_dir=None, shape=None, t
         sd = cfg["site_factor_sd"]
         site_f = {k: float(np.exp(s_tex.normal(0, sd))) for k in ("protrusion_factor", "macro_factor", "micro_factor")}
         clean, _ = gc.TEXTURES[cfg["texture"]].render(s_tex, shape, dx, sec, site_f, cfg["texture_params"])
-        of_surface = texture_table_of_surface if table == "harness" else workflow_table_of_surface
         row, hidden = of_surface(clean, dx, cfg["friction"]["micro_cut_mm"])
         rows.append(
             {"site": site, "section": str(r["section"]), **row, **{f"hidden_{k}": v for k, v in hidden.items()}}

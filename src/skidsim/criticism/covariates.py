@@ -270,9 +270,14 @@ def between_site_texture_scores(
     return score_table(sc, ids)
 
 
+def _holds_exactly(table: pd.DataFrame | None, ids) -> bool:
+    """Whether the score table ``table`` is given and holds exactly the sites ``ids`` (then its scores are used)."""
+    return table is not None and set(table.index) == set(ids)
+
+
 def scores_for(ids, table: pd.DataFrame | None, cov: pd.DataFrame, info: dict) -> np.ndarray:
     """The PC scores of ``ids`` from ``table`` when it holds exactly those sites, else computed over ``ids``."""
-    if table is not None and set(table.index) == set(ids):
+    if _holds_exactly(table, ids):
         return table.loc[list(ids)].to_numpy(float)
     return texture_scores(cov.loc[list(ids)], info)
 
@@ -280,4 +285,4 @@ def scores_for(ids, table: pd.DataFrame | None, cov: pd.DataFrame, info: dict) -
 def lead_count(ids, table: pd.DataFrame | None) -> int:
     """How many of the leading columns of :func:`scores_for`'s scores of ``ids`` are the prediction model's own
     (``table.attrs["n_lead"]``): 0 when the scores are computed over ``ids`` (``table`` None or of other sites)."""
-    return int(table.attrs.get("n_lead", 0)) if table is not None and set(table.index) == set(ids) else 0
+    return int(table.attrs.get("n_lead", 0)) if _holds_exactly(table, ids) else 0
