@@ -169,3 +169,51 @@ def test_without_an_effect_the_wide_member_is_not_named():
     res, sites, tex = _campaign(5, effect_mu=0.0)
     causes = cr.screen_candidates(res, sites, tex, DiagnosisOptions(seed=5), texture_lead=LEAD)
     assert not any(c.significant for c in _texture_model_main(causes))
+
+
+def _core_table(rng, n: int = 36) -> pd.DataFrame:
+    """A table holding every core column of the wide member (:func:`tc.wide_member_columns`), from 12 latent
+    factors, plus the contact zone's columns and profile_MPD (mm) and micro_Sq (mm) positive."""
+    latent = rng.normal(size=(n, 12))
+    core = [f"{b}_{q}" for b in tc.WIDE_CORE_BANDS for q in tc.WIDE_CORE_PARAMETERS if f"{b}_{q}" != "micro_Sq"]
+    X = latent @ rng.normal(size=(12, len(core) + 1)) + 0.3 * rng.normal(size=(n, len(core) + 1))
+    tex = pd.DataFrame(X[:, :-1], columns=core)
+    tex["micro_Sdq_top"] = X[:, -1]
+    tex["micro_Sq_top"] = latent[:, 2] + 0.2 * rng.normal(size=n)
+    tex["profile_MPD"] = np.exp(np.log(0.9) + 0.3 * latent[:, 0])
+    tex["micro_Sq"] = np.exp(np.log(0.03) + 0.15 * latent[:, 1])
+    return tex
+
+
+def test_the_wide_member_of_a_table_with_the_core_columns_reads_those_alone():
+    """A table holding the height and slope parameters of the three bands: the wide member is the same design
+    whatever other columns the table holds beside them (here 60 near-copies of raw_Sq and macro_Sv, as the
+    material-ratio volumes and the Sk family follow the heights), and differs from the PCs of the whole table;
+    without one core column (micro_Sdr) the table is read whole."""
+    rng = np.random.default_rng(6)
+    tex = _core_table(rng)
+    sites = [f"S{k:02d}-{j}" for k in range(12) for j in range(3)]
+    cov = tex.set_index(pd.Index(sites, name="site"))
+    copies = {f"raw_V{j}": cov["raw_Sq"] * (1 + 0.1 * j) + 0.05 * rng.normal(size=36) for j in range(30)}
+    copies |= {f"macro_F{j}": cov["macro_Sv"] + 0.05 * rng.normal(size=36) for j in range(30)}
+    wide = pd.concat([cov, pd.DataFrame(copies, index=cov.index)], axis=1)
+
+    def design(table):
+        m = tc.texture_members(table.index, table, None, None, LEAD, 0, tuple(table.columns), n_sections=12)
+        return next(x for x in m if x.name == "texture PCs 1-8").design
+
+    assert set(tc.wide_member_columns(wide.columns)) == set(cov.columns)
+    assert np.array_equal(design(cov), design(wide))
+
+    def pcs(table):  # the 8 leading PCs beyond [1, lead] (built independently)
+        X = table.to_numpy(float)
+        Xs = (X - X.mean(axis=0)) / X.std(axis=0)
+        B = np.c_[np.ones(36), np.log(table["profile_MPD"]), np.log(table["micro_Sq"])]
+        return np.linalg.svd(Xs - B @ np.linalg.lstsq(B, Xs, rcond=None)[0], full_matrices=False)[0][:, :8]
+
+    D = design(wide) / np.sqrt(36)
+    assert np.allclose(np.abs(np.sum(D * pcs(cov), axis=0)), 1.0, atol=1e-8)
+    # the whole table's PCs differ: the copies pull the leading directions towards raw_Sq and macro_Sv
+    assert np.abs(np.sum(D * pcs(wide), axis=0)).min() < 0.9
+    partial = wide.drop(columns="micro_Sdr")
+    assert tc.wide_member_columns(partial.columns) == list(partial.columns)

@@ -23,7 +23,8 @@ texture models (*members*), each a design built from the texture alone (3 column
 * ``texture PCs 1-k`` (the wide member, k from 4 to ``WIDE_PCS`` = 8): the k leading principal components of the
   texture columns beyond ``[1, the prediction model's terms]``, ``k = min(8, n_sections - 4, rank)``: a measure
   the table does not hold (the microtexture where the slider touches) shows as a direction several columns share,
-  not always among the leading three (:func:`_wide_design`),
+  not always among the leading three (:func:`_wide_design`); of a table that holds the height and slope
+  parameters of the three bands, the PCs of those, the contact zone's and MPD (:func:`wide_member_columns`),
 
 is tested against the between-site residual (site means, ``main``) by the same nested permutations as every
 covariate, and, where section identity x speed is significant between sites, against the residual's speed profiles
@@ -55,6 +56,13 @@ PCS_MEMBER = f"texture PCs 1-{MEMBER_DF}"
 WIDE_PCS = 8
 #: The wide member leaves at least this many of the sections' degrees of freedom free (k <= n_sections - this).
 WIDE_SECTION_MARGIN = 4
+#: The bands and the parameters (ISO 25178-2 height and hybrid) of the wide member's core columns
+#: (:func:`wide_member_columns`).
+WIDE_CORE_BANDS = ("raw", "macro", "micro")
+WIDE_CORE_PARAMETERS = ("Sq", "Sa", "Sp", "Sv", "Ssk", "Sku", "Sdq", "Sdr")
+#: The contact zone's and the profile's columns the wide member reads beside the core ones, where the table holds
+#: them (:mod:`skidsim.texture.contact`; the MPD in mm).
+WIDE_CORE_EXTRA = ("micro_Sq_top", "micro_Sdq_top", "profile_MPD")
 
 
 @dataclass(frozen=True)
@@ -137,13 +145,32 @@ def _contact_design(C: pd.DataFrame) -> np.ndarray | None:
     return np.column_stack([peak, micro_peak, on_tops])
 
 
+def wide_member_columns(texture_columns) -> list[str]:
+    """The texture columns the wide member reads: where ``texture_columns`` hold every core column
+    ``<band>_<parameter>`` (:data:`WIDE_CORE_BANDS` x :data:`WIDE_CORE_PARAMETERS`: the heights Sq Sa Sp Sv Ssk Sku
+    and the slopes Sdq Sdr of the raw, macro and micro bands), those and the ones of :data:`WIDE_CORE_EXTRA` among
+    them, in the table's order; else every column.
+
+    Why: the workflow's table holds about 120 columns, most of them families that repeat a few directions (the
+    material-ratio volumes and the Sk family follow Sq, the feature and motif counts each other), and the leading
+    principal components of all of them follow what many near-duplicates share, not a measure the table does not
+    hold (docs/model-criticism.md, section 2, "The texture model as a candidate cause"). A table of other columns
+    (a user's own, a campaign's stand-in) is read whole."""
+    cols = list(texture_columns)
+    core = {f"{b}_{q}" for b in WIDE_CORE_BANDS for q in WIDE_CORE_PARAMETERS}
+    if not core <= set(cols):
+        return cols
+    return [c for c in cols if c in core or c in WIDE_CORE_EXTRA]
+
+
 def _wide_design(C: pd.DataFrame, texture_columns, lead: tuple, n_sections: int) -> np.ndarray | None:
     """The wide member's design (n_sites, k): the ``k`` leading principal components of the numeric texture
     columns ``texture_columns`` of ``C`` (each standardised over the sites) taken beyond ``[1, lead columns]``
     (:func:`~skidsim.criticism.adjustment.lead_design`; ``[1]`` without lead terms), each standardised; ``k =
-    min(WIDE_PCS, n_sections - WIDE_SECTION_MARGIN, rank)``. None when ``k <= MEMBER_DF`` (the PCs member holds
-    as many) or no column is usable (a column with a missing value or no spread is left out)."""
-    cols = [c for c in texture_columns if c in C.columns]
+    min(WIDE_PCS, n_sections - WIDE_SECTION_MARGIN, rank)``; of a table that holds the core columns, those
+    (:func:`wide_member_columns`). None when ``k <= MEMBER_DF`` (the PCs member holds as many) or no column is
+    usable (a column with a missing value or no spread is left out)."""
+    cols = wide_member_columns(c for c in texture_columns if c in C.columns)
     if not cols:
         return None
     X = C[cols].apply(pd.to_numeric, errors="coerce").to_numpy(float)
