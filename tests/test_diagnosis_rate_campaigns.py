@@ -260,3 +260,14 @@ def test_the_workflow_table_holds_the_harness_columns_with_the_same_values():
     for k in rc.TABLE_COLUMNS:
         assert workflow[k] == pytest.approx(harness[k], rel=1e-9, abs=1e-12), k
     assert hidden_w == hidden
+
+
+def test_the_wide_member_reads_the_harness_table_whole():
+    """The harness's rates rest on the wide member reading all of the harness's columns: its table is exactly the
+    wide member's core set (texture_candidate.wide_member_columns), so a harness rate and a workflow-table rate
+    compare one model on two tables. A column added to one list and not the other fails here."""
+    from skidsim.criticism.texture_candidate import wide_member_columns
+
+    assert wide_member_columns(rc.TABLE_COLUMNS) == list(rc.TABLE_COLUMNS)
+    # a workflow column beyond the harness's is left out, so the harness table is the core set, not a superset of it
+    assert len(wide_member_columns([*rc.TABLE_COLUMNS, "raw_Vmp"])) == len(rc.TABLE_COLUMNS)
