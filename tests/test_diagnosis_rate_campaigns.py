@@ -267,10 +267,9 @@ def test_the_wide_member_reads_the_harness_table_whole():
     wide member's core set (texture_candidate.wide_member_columns), so a harness rate and a workflow-table rate
     compare one model on two tables. A column added to one list and not the other fails here."""
     from skidsim.criticism import texture_candidate as tc
-    from skidsim.criticism.texture_candidate import wide_member_columns
 
     core = {f"{b}_{q}" for b in tc.WIDE_CORE_BANDS for q in tc.WIDE_CORE_PARAMETERS} | set(tc.WIDE_CORE_EXTRA)
     assert core == set(rc.TABLE_COLUMNS)  # a core column the harness lacks would have it read whole, silently
-    assert wide_member_columns(rc.TABLE_COLUMNS) == list(rc.TABLE_COLUMNS)
+    assert tc.wide_member_columns(rc.TABLE_COLUMNS) == list(rc.TABLE_COLUMNS)
     # a workflow column beyond the harness's is left out, so the harness table is the core set, not a superset of it
-    assert len(wide_member_columns([*rc.TABLE_COLUMNS, "raw_Vmp"])) == len(rc.TABLE_COLUMNS)
+    assert len(tc.wide_member_columns([*rc.TABLE_COLUMNS, "raw_Vmp"])) == len(rc.TABLE_COLUMNS)
