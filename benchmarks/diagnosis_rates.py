@@ -4,14 +4,15 @@
         [--generators default,chips,spectral] [--kinds none,section_column,...] [--n-permutations 4999] \
         [--n-boot 200] [--screen-only] [--beyond-size MU] [--out results/diagnosis_rates] [--cache DIR] [--designs N] \
         [--texture-share S] [--fdr Q] [--cluster-rho R] [--trace-from KMH] [--temperature-range LO,HI]
-        [--table harness|workflow]
+        [--table harness|workflow] [--friction-model piarc|rado|penn_state]
 
 Campaigns: tests/diagnosis_rate_campaigns.py (36 sites, 12 sections; the FE replaced by a per-site calibration of
 the exponential-decay law, the texture model by a physics2@dft-like least squares on log MPD and log micro Sq; the
 texture of chips and spectral from the generators' own surfaces, cached per design in ``--cache``: the harness's 27
 columns, or with ``--table workflow`` every column of the workflow's texture table, about 120; the DFT traces
 from ``--trace-from``, 20 km/h by default, up to 80 km/h; the sections' temperatures in ``--temperature-range``,
-18-22 deg C by default). Per generator
+18-22 deg C by default; ``--friction-model``: the chips and spectral campaigns' friction-speed model in place of
+the generator's own, PIARC/IFI for chips and Rado for spectral, with the same random draws). Per generator
 x kind x seed the whole diagnosis (:func:`skidsim.criticism.diagnose`, ``DiagnosisOptions(seed=seed, n_boot=...,
 n_permutations=...)``) sees only the campaign tables; the truth is used only to score:
 
@@ -195,6 +196,7 @@ def run_one(args: tuple) -> dict:
         "effect_rms_mu": truth["effect_rms_mu"],
         "effect_sd_beyond_texture_model_mu": truth["effect_sd_beyond_texture_model_mu"],
         "size": truth["size"],
+        "friction_model": truth["friction_model"],
         "named": label(top),
         "named_variable": top.variable if top is not None else "",
         "named_source": getattr(top, "source", "") if top is not None else "",
@@ -387,6 +389,13 @@ def main(argv=None):
         help="range of the sections' temperatures in deg C (default 18,22: tests/diagnosis_rate_campaigns.py)",
     )
     ap.add_argument(
+        "--friction-model",
+        default=None,
+        choices=("piarc", "rado", "penn_state"),
+        help="the chips and spectral campaigns' friction-speed model (skidsim.generators.friction_models) in place of "
+        "the generator's own (chips: piarc, spectral: rado); not for the default source, whose law is its own",
+    )
+    ap.add_argument(
         "--figure-only",
         nargs="+",
         default=None,
@@ -406,6 +415,8 @@ def main(argv=None):
     for k in kinds:
         if k not in KINDS:
             ap.error(f"--kinds: unknown {k!r}; expected some of {','.join(KINDS)}")
+    if a.friction_model is not None and "default" in gens:
+        ap.error("--friction-model: the default source has a law of its own; give --generators chips,spectral")
     if a.designs < 0:
         ap.error(f"--designs: expected 0 (a design per seed) or a positive count, got {a.designs}")
     t0 = time.perf_counter()
@@ -423,6 +434,8 @@ def main(argv=None):
         if v is not None
     }
     campaign = {"trace_from_kmh": a.trace_from, "texture_table": a.table}
+    if a.friction_model is not None:
+        campaign["friction_model"] = a.friction_model
     if a.temperature_range is not None:
         lo, _, hi = a.temperature_range.partition(",")
         campaign["temperature_section_c"] = (float(lo), float(hi))

@@ -25,7 +25,10 @@ Texture sources and friction truths (the friction law of each source is its own,
   (:data:`skidsim.generators.campaign.COMMON`) but not its section factors: those are a hidden section-level effect
   of their own, so with them a campaign would hide two effects. ``chips+sectionlatent`` /
   ``spectral+sectionlatent`` keep them (:data:`SECTION_LATENT`): a robustness source whose null's right answer is
-  ``section (unexplained)``. The texture tables of a few designs per generator
+  ``section (unexplained)``. ``friction_model`` puts another friction-speed model of
+  :mod:`skidsim.generators.friction_models` (``piarc``, ``rado``, ``penn_state``) in place of the generator's own,
+  with the same random draws and the same level at 20 km/h: the texture of one generator with the friction-speed
+  shape of another. The texture tables of a few designs per generator
   (:data:`N_DESIGNS`) are computed once and cached (:func:`generator_texture`); campaign seed ``s`` uses design
   ``s % N_DESIGNS`` and draws everything else (friction random factors, decoys, temperatures, DFT noise) afresh.
   ``n_designs=0`` (:func:`design_of`) gives every seed a texture design of its own, so that a rate counts texture
@@ -386,14 +389,24 @@ def site_design(seed: int, site, section, temperature_section_c: tuple = TEMP_SE
     )
 
 
-def _base_law(source: str, tex: pd.DataFrame, rng: np.random.Generator, micro_driver: np.ndarray):
+def _base_law(
+    source: str,
+    tex: pd.DataFrame,
+    rng: np.random.Generator,
+    micro_driver: np.ndarray,
+    friction_model: str | None = None,
+):
     """A function ``mu(i, v)`` of the source's friction law with its random factors; ``micro_driver``: the micro
-    Sq (mm) the level law reads (the whole-scan one, or the contact one of the texture-measure kind)."""
+    Sq (mm) the level law reads (the whole-scan one, or the contact one of the texture-measure kind);
+    ``friction_model``: chips and spectral only, one of :data:`skidsim.generators.friction_models.MODELS` in place
+    of the generator's own (None: its own), with the same random draws."""
     from skidsim.generators import campaign as gc
     from skidsim.generators import friction_models as fm
 
     n = len(tex)
     if source == "default":
+        if friction_model is not None:
+            raise ValueError(f"friction_model: the default source has a law of its own, got {friction_model!r}")
         sdq_micro = tex["micro_Sdq"].to_numpy(float) * micro_driver / tex["hidden_micro_sq_mm"].to_numpy(float)
         mpd = tex["profile_MPD"].to_numpy(float)
         mu_k = (0.15 + 0.60 * (1.0 - np.exp(-sdq_micro / 0.5))) * np.exp(rng.normal(0.0, 0.02, n))
@@ -407,6 +420,10 @@ def _base_law(source: str, tex: pd.DataFrame, rng: np.random.Generator, micro_dr
     gen = generator_of(source)
     cfg = gc.generator_config(gen)
     f = cfg["friction"]
+    if friction_model is not None:
+        if friction_model not in fm.MODELS:
+            raise ValueError(f"friction_model: expected one of {fm.MODELS}, got {friction_model!r}")
+        f = {**f, "model": friction_model}
     if not source.endswith(SECTION_LATENT):  # one hidden effect per campaign: no random section factors
         f = {**f, "section_level_sd": 0.0, "section_sp_sd": 0.0}
     secs = list(dict.fromkeys(tex["section"]))
@@ -444,6 +461,7 @@ def generate(
     texture_table: str = "harness",
     trace_from_kmh: float = 20.0,
     temperature_section_c: tuple = TEMP_SECTION_C,
+    friction_model: str | None = None,
 ):
     """Return (sites, measured, texture, truth) of one campaign: sites.csv columns, DFT points (site, speed_kmh,
     mu, kind), the texture table (site + numeric columns; the hidden measures are not in it) and the truth dict
@@ -454,7 +472,9 @@ def generate(
     :func:`generator_texture` table (else design :func:`design_of` (``seed``, ``n_designs``) is computed or read
     from ``cache_dir``; ``texture_table``: which table, :data:`TABLES`). ``trace_from_kmh``: the DFT trace's lowest
     speed (km/h; 20 by default: no trace point below 20 km/h; :func:`diagnosis_campaigns.measured_points`);
-    ``temperature_section_c``: the range (deg C) of the sections' temperatures (:func:`site_design`)."""
+    ``temperature_section_c``: the range (deg C) of the sections' temperatures (:func:`site_design`);
+    ``friction_model``: chips and spectral only, a friction-speed model of
+    :data:`skidsim.generators.friction_models.MODELS` in place of the generator's own (:func:`_base_law`)."""
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
     if source not in SOURCES:
@@ -478,8 +498,12 @@ def generate(
         driver = micro + size * (contact - micro)
     else:
         driver = micro
-    base = _base_law(source, tex, rng, driver)
-    plain = _base_law(source, tex, _rng(seed, source, "friction"), micro) if kind == "texture_measure" else base
+    base = _base_law(source, tex, rng, driver, friction_model)
+    plain = (
+        _base_law(source, tex, _rng(seed, source, "friction"), micro, friction_model)
+        if kind == "texture_measure"
+        else base
+    )
     rows = sites.to_dict("records")
     sdq = tex["macro_Sdq"].to_numpy(float)
     z_sdq = (sdq - sdq.mean()) / sdq.std()
@@ -507,6 +531,7 @@ def generate(
         "kind": kind,
         "variable": HIDDEN[kind],
         "size": size,
+        "friction_model": friction_model or "",
         "effect_sd_mu": float(eff.mean(axis=1).std()),
         "effect_rms_mu": float(np.sqrt(((eff - eff.mean(axis=0)) ** 2).mean())),
         "effect_sd_beyond_texture_model_mu": beyond_texture_model(eff, table),

@@ -273,3 +273,43 @@ def test_the_wide_member_reads_the_harness_table_whole():
     assert tc.wide_member_columns(rc.TABLE_COLUMNS) == list(rc.TABLE_COLUMNS)
     # a workflow column beyond the harness's is left out, so the harness table is the core set, not a superset of it
     assert len(tc.wide_member_columns([*rc.TABLE_COLUMNS, "raw_Vmp"])) == len(rc.TABLE_COLUMNS)
+
+
+def test_a_friction_model_in_place_of_the_generators_own_keeps_its_draws(chips_texture):
+    """``friction_model``: the chips campaign with another friction-speed model of the same draws. Every model
+    passes through the same level at 20 km/h (the generator's level law times the same random factors); PIARC and
+    Penn State are exponentials in v whose log-slopes, -1 / (Sp f) and -PNG / (100 f) with the same speed-constant
+    factor f, stand in the ratio 100 / (Sp(MPD) PNG(MPD)) of the published relations at each site's MPD; Rado's
+    curve is not an exponential in v. The default source keeps its own law."""
+    from skidsim.generators import friction_models as fm
+
+    curves = {}
+    for model in (None, "piarc", "penn_state", "rado"):
+        sites, mu, tex, truth = rc.generate(
+            "chips", "none", 3, noise_mu=0.0, trace_step_kmh=0, texture=chips_texture, friction_model=model
+        )
+        curves[model] = mu.pivot_table(index="site", columns="speed_kmh", values="mu").loc[sites["site"]]
+        assert truth["friction_model"] == (model or "")
+    v = curves[None].columns.to_numpy(float)
+    assert v[0] == 20.0 and v[-1] >= 60.0
+    np.testing.assert_array_equal(curves[None].to_numpy(), curves["piarc"].to_numpy())
+    for model, apart in (("penn_state", 0.002), ("rado", 0.02)):  # largest difference (PNG follows 1 / Sp)
+        np.testing.assert_allclose(curves[model][20.0], curves["piarc"][20.0], rtol=1e-12)
+        assert np.abs(curves[model].to_numpy() - curves["piarc"].to_numpy()).max() > apart
+    slope = {m: np.polyfit(v, np.log(curves[m].to_numpy().T), 1)[0] for m in ("piarc", "penn_state")}
+    mpd = tex["profile_MPD"].to_numpy(float)
+    expected = 100.0 / (
+        np.array([fm.ifi_speed_constant_kmh(x) for x in mpd]) * np.array([fm.penn_state_png(x) for x in mpd])
+    )
+    np.testing.assert_allclose(slope["piarc"] / slope["penn_state"], expected, rtol=1e-9)
+    for m in ("piarc", "penn_state"):  # exponentials in v: log mu is a line
+        resid = np.log(curves[m].to_numpy().T) - np.polyval(
+            np.polyfit(v, np.log(curves[m].to_numpy().T), 1), v[:, None]
+        )
+        assert np.abs(resid).max() < 1e-9
+    rado = np.log(curves["rado"].to_numpy().T)
+    assert np.abs(rado - np.polyval(np.polyfit(v, rado, 1), v[:, None])).max() > 1e-3
+    with pytest.raises(ValueError, match="friction_model"):
+        rc.generate("default", "none", 3, friction_model="penn_state")
+    with pytest.raises(ValueError, match="friction_model"):
+        rc.generate("chips", "none", 3, texture=chips_texture, friction_model="linear")
