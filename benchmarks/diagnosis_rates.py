@@ -58,6 +58,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from skidsim.generators.friction_models import MODELS as FRICTION_MODELS
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
@@ -391,7 +393,7 @@ def main(argv=None):
     ap.add_argument(
         "--friction-model",
         default=None,
-        choices=("piarc", "rado", "penn_state"),
+        choices=FRICTION_MODELS,
         help="the chips and spectral campaigns' friction-speed model (skidsim.generators.friction_models) in place of "
         "the generator's own (chips: piarc, spectral: rado); not for the default source, whose law is its own",
     )

@@ -420,9 +420,7 @@ def _base_law(
     gen = generator_of(source)
     cfg = gc.generator_config(gen)
     f = cfg["friction"]
-    if friction_model is not None:
-        if friction_model not in fm.MODELS:
-            raise ValueError(f"friction_model: expected one of {fm.MODELS}, got {friction_model!r}")
+    if friction_model is not None:  # an unknown model: fm.model_parameters' ConfigError
         f = {**f, "model": friction_model}
     if not source.endswith(SECTION_LATENT):  # one hidden effect per campaign: no random section factors
         f = {**f, "section_level_sd": 0.0, "section_sp_sd": 0.0}
