@@ -181,3 +181,54 @@ def test_mpd_x_speed_goes_above_the_texture_clusters_that_hold_mpd_within_sites_
     # both levels significant, the between-site one ranked first by cv_msr: the drainage hypothesis moves
     out = rank_causes([cluster, replace(mpd, cv_msr=3e-4), replace(within, cv_msr=1e-4)], cov, "profile_MPD")
     assert [(c.variable, c.level) for c in out][:2] == [("profile_MPD", "within-site"), ("macro_Sdq", "between-site")]
+
+
+def test_mpd_x_speed_within_sites_goes_only_above_the_clusters_mpd_describes():
+    """Drainage's footprint between sites is a function of MPD: a within-site MPD x speed goes above a cluster
+    holding MPD only where MPD's own between-site term of the cluster's kind carries at least half its cv_msr
+    (``DRAINAGE_FOOTPRINT_SHARE``; 0.81-1.06 on the residual-level drainage campaigns, 0.08-0.41 on the chips texture
+    x speed campaigns with Rado's curves at seeds 0 and 1), and not past a cluster it does not describe; a
+    texture-model x speed member in MPD above such a cluster goes right below the MPD column that it nests."""
+    from dataclasses import replace
+
+    from skidsim.criticism.causes import Cause
+    from skidsim.criticism.ranking import DRAINAGE_FOOTPRINT_SHARE, _mpd_above_its_clusters, rank_causes
+
+    group = ("macro_Sdq", "macro_Sdr", "profile_MPD")
+
+    def cause(variable, kind, cv_msr, level="between-site", **kw):
+        c = Cause(variable, level, kind, 0.01, 0.5, 0.0001, 0.005, True, source="texture", group=group)
+        return replace(c, cv_msr=cv_msr, **kw)
+
+    cov = pd.DataFrame({"profile_MPD": np.linspace(0.5, 1.5, 6)}, index=[f"s{k}" for k in range(6)])
+    within = cause("profile_MPD", "x_speed", 7.7e-5, level="within-site", unit="profile_MPD", family="primary")
+    level = cause("macro_Sdq", "main", 7.1e-4, unit="cluster:macro_Sdq")
+    slope = cause("macro_Sdr", "x_speed", 2.1e-4, unit="cluster:macro_Sdr")
+    # chips + Rado, seed 0: MPD's own between-site level term carries 0.13 of the cluster's, its slope term 0.41
+    mpd_level = cause("profile_MPD", "main", 0.13 * 7.1e-4, significant=False, p_adjusted=0.065)
+    mpd_slope = cause("profile_MPD", "x_speed", 0.41 * 2.1e-4, significant=False, p_adjusted=0.06)
+    out = rank_causes([within, level, slope, mpd_level, mpd_slope], cov, "profile_MPD")
+    assert [c.variable for c in out[:3]] == ["macro_Sdq", "macro_Sdr", "profile_MPD"], out
+    assert out[2].level == "within-site"
+    # MPD describes both clusters (drainage: 0.81-1.06): the drainage hypothesis goes first
+    share = DRAINAGE_FOOTPRINT_SHARE
+    described = [replace(mpd_level, cv_msr=0.9 * 7.1e-4), replace(mpd_slope, cv_msr=1.01 * 2.1e-4)]
+    out = rank_causes([within, level, slope, *described], cov, "profile_MPD")
+    assert out[0] is within, out
+    # at the threshold it still moves; just under it, not
+    at = [replace(mpd_level, cv_msr=share * 7.1e-4), replace(mpd_slope, cv_msr=share * 2.1e-4)]
+    assert rank_causes([within, level, slope, *at], cov, "profile_MPD")[0] is within
+    under = [replace(mpd_level, cv_msr=0.99 * share * 7.1e-4), described[1]]
+    out = rank_causes([within, level, slope, *under], cov, "profile_MPD")
+    # it passes the slope cluster MPD describes, but not the level cluster above it that MPD does not
+    assert [(c.variable, c.level) for c in out[:3]] == [
+        ("macro_Sdq", "between-site"),
+        ("profile_MPD", "within-site"),
+        ("macro_Sdr", "between-site"),
+    ], out
+    # a texture-model member nonlinear in MPD ranked above that level cluster goes right below the MPD column (the
+    # rule alone, on a list in rank order)
+    member = cause("texture_model[nonlinear in profile_MPD]", "x_speed", 9e-4, source="texture_model", group=())
+    ranked = [member, level, slope, within, *under]
+    _mpd_above_its_clusters(ranked, "profile_MPD")
+    assert [c.variable for c in ranked[:4]] == ["macro_Sdq", "profile_MPD", member.variable, "macro_Sdr"], ranked

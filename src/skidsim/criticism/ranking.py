@@ -12,18 +12,39 @@ from .options import DiagnosisOptions
 from .refinement import _descriptions_at_their_groupings, order_by_refinement, refinement_descriptions
 from .section_naming import beyond_texture_explanations, columns_beyond_texture, section_explanations, section_rule
 
+DRAINAGE_FOOTPRINT_SHARE = 0.5
+"""The share of a between-site texture cluster's predictive evidence (``cv_msr``) that the MPD column's own
+between-site term of the same kind must carry for a within-site MPD x speed (the drainage hypothesis) to rank
+above that cluster (:func:`_mpd_above_its_clusters`): drainage's footprint between sites is a function of MPD (the
+IFI speed constant Sp = 14.2 + 89.7 MPD), so where MPD is not the cluster's description the cluster is not that
+footprint. Measured (docs/model-criticism-measured.md, section 4): 0.81-1.06 on the residual-level drainage and
+squeeze campaigns, at most 0.63 on the chips texture x speed campaigns with Rado's curves."""
+
+
+def _describes(causes: list[Cause], mpd_col: str, cluster: Cause) -> bool:
+    """Whether the MPD column's own between-site term of the cluster's kind carries at least
+    :data:`DRAINAGE_FOOTPRINT_SHARE` of the cluster cause's ``cv_msr`` (True where that term was not tested)."""
+    own = [c for c in causes if c.variable == mpd_col and c.level == "between-site" and c.kind == cluster.kind]
+    if not own or cluster.variable == mpd_col:
+        return True
+    return own[0].cv_msr >= DRAINAGE_FOOTPRINT_SHARE * cluster.cv_msr
+
 
 def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
     """A significant MPD x speed ranks above a texture-model candidate x speed built on MPD
     (``texture_model[nonlinear in <MPD>]``, x_speed: its cubic nests the linear column, and the linear column is the
-    more specific name) and, within sites, above the texture clusters that hold MPD. Within sites MPD x speed is the
-    drainage hypothesis, whose footprint the between-site clusters are (drainage makes the texture model misfit the
-    level of shallow-texture sites: the macrotexture height cluster is significant between sites; MPD x speed names
-    the mechanism); it moves first when significant. Between sites it is itself a misfit of the texture model (the
-    IFI speed constant the texture model misses), one description among the clusters, which keep their order by
-    predictive evidence (``cv_msr``): on texture x speed campaigns the cluster's level term carries several times
-    its ``cv_msr`` and predicts held-out sites, the speed-shape term does not (docs/model-criticism.md, section 2).
-    In place."""
+    more specific name) and, within sites, above the texture clusters that hold MPD where MPD describes them between
+    sites. Within sites MPD x speed is the drainage hypothesis, whose footprint the between-site clusters are
+    (drainage makes the texture model misfit the level of shallow-texture sites: the macrotexture height cluster is
+    significant between sites; MPD x speed names the mechanism); it moves above each such cluster whose predictive
+    evidence (``cv_msr``) the MPD column's own between-site term of the same kind carries at least
+    :data:`DRAINAGE_FOOTPRINT_SHARE` of, and not past one it does not (:func:`_describes`): a cluster that another
+    member describes much better than MPD (the macro rms slope of a hysteresis that grows with speed, while the
+    exponential-decay law's misfit of another speed shape varies with MPD within sites) is not drainage's footprint.
+    Between sites MPD x speed is itself a misfit of the texture model (the IFI speed constant the texture model
+    misses), one description among the clusters, which keep their order by predictive evidence: on texture x speed
+    campaigns the cluster's level term carries several times its ``cv_msr`` and predicts held-out sites, the
+    speed-shape term does not (docs/model-criticism.md, section 2). In place."""
     if mpd_col is None:
         return
     mp = [k for k, c in enumerate(causes) if c.significant and c.variable == mpd_col and c.kind == "x_speed"]
@@ -32,15 +53,36 @@ def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
         return
     within = causes[mp[0]].level == "within-site"
 
-    def holds_mpd(c: Cause) -> bool:
-        if c.source == "texture_model":
-            axes = (mpd_col, f"log({mpd_col})")
-            return c.kind == "x_speed" and c.variable in {f"texture_model[nonlinear in {a}]" for a in axes}
+    def texture_model_on_mpd(c: Cause) -> bool:
+        axes = (mpd_col, f"log({mpd_col})")
+        return (
+            c.source == "texture_model"
+            and c.kind == "x_speed"
+            and c.variable in {f"texture_model[nonlinear in {a}]" for a in axes}
+        )
+
+    def cluster_on_mpd(c: Cause) -> bool:
         return within and mpd_col in c.group and c.unit is not None and str(c.unit).startswith("cluster:")
 
-    above = [k for k, c in enumerate(causes) if c.significant and k < mp[0] and holds_mpd(c)]
-    if above:
-        causes.insert(above[0], causes.pop(mp[0]))
+    above, barrier = [], -1
+    for k in range(mp[0]):
+        c = causes[k]
+        if c.significant and texture_model_on_mpd(c):
+            above.append(k)
+        elif c.significant and cluster_on_mpd(c):
+            if _describes(causes, mpd_col, c):
+                above.append(k)
+            else:
+                barrier = k  # not drainage's footprint: MPD x speed does not go past it
+    mpd = causes.pop(mp[0])
+    past = [k for k in above if k > barrier]
+    at = past[0] if past else mp[0]
+    causes.insert(at, mpd)
+    # the texture model's cubic in MPD above the barrier goes right below the linear column it nests
+    nested = [causes[k] for k in above if k < barrier]
+    kept = [c for c in causes if not any(c is n for n in nested)]
+    k = next(i for i, c in enumerate(kept) if c is mpd) + 1
+    causes[:] = kept[:k] + nested + kept[k:]
 
 
 def _shape_below_its_covariate(causes: list[Cause]) -> None:
