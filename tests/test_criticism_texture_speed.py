@@ -186,8 +186,8 @@ def test_mpd_x_speed_goes_above_the_texture_clusters_that_hold_mpd_within_sites_
 def test_mpd_x_speed_within_sites_goes_only_above_the_clusters_mpd_describes():
     """Drainage's footprint between sites is a function of MPD: a within-site MPD x speed goes above a cluster
     holding MPD only where MPD's own between-site term of the cluster's kind carries at least half its cv_msr
-    (``DRAINAGE_FOOTPRINT_SHARE``; 0.81-1.06 on the residual-level drainage campaigns, 0.08-0.41 on the chips texture
-    x speed campaigns with Rado's curves at seeds 0 and 1), and not past a cluster it does not describe; a
+    (``DRAINAGE_FOOTPRINT_SHARE``; 0.81-1.06 on the residual-level drainage campaigns, -0.20 to 0.41 on the chips
+    texture x speed campaigns with Rado's curves at seeds 0 and 1), and not past a cluster it does not describe; a
     texture-model x speed member in MPD above such a cluster goes right below the MPD column that it nests."""
     from dataclasses import replace
 
