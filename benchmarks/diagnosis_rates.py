@@ -19,7 +19,10 @@ n_permutations=...)``) sees only the campaign tables; the truth is used only to 
 * ``named_top``: the named cause (first, significant) is the hidden variable or holds it in its group; for
   ``texture_speed`` also the texture model (a texture-model candidate, ``texture_model[...]``); for
   ``texture_measure`` (the driving measure is not in the table) the texture model or a texture parameter
-  (``source`` in texture / texture_model). For ``none`` the column is empty, except on the robustness sources
+  (``source`` in texture / texture_model); for ``drainage`` (profile_MPD) the MPD column at either level, a
+  texture cluster holding it, or a texture-model member in MPD (``texture_model[... log(profile_MPD) ...]``: the
+  texture model's form in MPD, which the IFI speed constant sets). For ``none`` the column is empty, except on the
+  robustness sources
   ``<generator>+sectionlatent`` (the generator's random section factors kept: a hidden section-level effect that
   nothing in the tables carries), where the right answer is ``section (unexplained)`` and the false-naming columns
   are empty. The plain ``chips`` / ``spectral`` sources hide one effect per campaign (no section factors);
@@ -104,6 +107,8 @@ def hit(c, truth: dict) -> bool:
         return is_texture(c)
     if kind == "texture_speed" and is_texture_model(c):
         return True
+    if kind == "drainage" and is_texture_model(c):  # the texture model's form in MPD: the IFI speed constant
+        return hidden in str(c.variable)
     return hidden is not None and (c.variable == hidden or hidden in (c.group or ()))
 
 

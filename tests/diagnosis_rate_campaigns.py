@@ -58,7 +58,14 @@ others (they were 0.015 and 0.014 mu with the constants 0.03 and 0.08):
   tops within 0.5 mm of the highest ones), not by the whole-scan micro Sq; the table holds micro_Sq, not
   micro_contact. ``default``: micro_contact = micro_Sq x (a logistic share of tops that falls with macro Sq).
   The level law is the source's own with micro_contact (rescaled to the campaign mean of micro_Sq) in place of
-  micro_Sq.
+  micro_Sq;
+* ``drainage``: partial hydroplaning through the macrotexture (the squeeze form of
+  :func:`skidsim.generators.friction_models.hidden_factor`, as the workflow's drainage campaign),
+  ``x max(0.05, 1 - 0.3 (v^2 - 20^2) / Sp^2)`` with the IFI speed constant ``Sp = 14.2 + 89.7 profile_MPD`` (km/h,
+  MPD mm): 1 at 20 km/h, a loss growing with speed and faster on shallow texture. The hidden variable is
+  profile_MPD, which the table holds: the texture model's ``log(profile_MPD)`` term carries part of the level,
+  and the rest is a speed shape the exponential-decay law does not follow (sd of the site means 0.02-0.05 mu,
+  measured per campaign in ``truth["effect_sd_mu"]``).
 
 Units: speeds km/h, temperatures deg C, MPD and Sq mm, mu dimensionless.
 """
@@ -81,6 +88,7 @@ KINDS = (
     "texture_speed",
     "categorical_speed",
     "texture_measure",
+    "drainage",
 )
 SOURCES = ("default", "chips", "spectral", "chips+sectionlatent", "spectral+sectionlatent")
 #: Suffix of a robustness source: the generator's own random section factors on the friction level and on Sp
@@ -98,6 +106,7 @@ HIDDEN = {
     "texture_speed": "macro_Sdq",
     "categorical_speed": "aggregate",
     "texture_measure": None,
+    "drainage": "profile_MPD",
 }
 #: the texture model's columns, as the workflow's physics2@dft records them
 PREDICTION_FEATURES = ("log(profile_MPD)", "log(micro_Sq)")
@@ -121,6 +130,8 @@ WLF = {"t_ref_c": 20.0, "c1": 8.86, "c2_k": 101.6}
 TEMP_SECTION_C, TEMP_SITE_SD_K = (18.0, 22.0), 0.7
 HYST_MU = 0.075
 POLISHED, POLISH_LOW_SPEED_MU = "limestone", 0.21
+#: squeeze-form drainage: x max(0.05, 1 - DRAIN_KAPPA (v^2 - 20^2) / Sp^2), Sp = 14.2 + 89.7 profile_MPD (km/h)
+DRAIN_KAPPA = 0.3
 CONTACT_DEPTH_MM = 0.5
 
 
@@ -149,6 +160,14 @@ def wlf_log10_shift(t_c, t_ref_c=WLF["t_ref_c"], c1=WLF["c1"], c2_k=WLF["c2_k"])
 
 #: The kinds whose effect acts through a column of sites.csv (:func:`column_effect`).
 COLUMN_KINDS = ("section_column", "site_column", "temperature", "categorical_speed")
+
+
+def drainage_factor(mpd_mm: float, v_kmh, size: float = 1.0) -> np.ndarray:
+    """The ``drainage`` kind's multiplier on mu at ``v_kmh`` (km/h) of a site of MPD ``mpd_mm`` (mm):
+    ``max(0.05, 1 - size DRAIN_KAPPA (v^2 - 20^2) / Sp^2)``, ``Sp`` the IFI speed constant (km/h)."""
+    from skidsim.generators.friction_models import hidden_factor, ifi_speed_constant_kmh
+
+    return hidden_factor("squeeze", size * DRAIN_KAPPA, ifi_speed_constant_kmh(mpd_mm), v_kmh)
 
 
 def column_effect(kind: str, row, v_kmh, mu_of, size: float = 1.0) -> np.ndarray:
@@ -503,6 +522,7 @@ def generate(
         else base
     )
     rows = sites.to_dict("records")
+    mpd = tex["profile_MPD"].to_numpy(float)
     sdq = tex["macro_Sdq"].to_numpy(float)
     z_sdq = (sdq - sdq.mean()) / sdq.std()
 
@@ -513,6 +533,8 @@ def generate(
         mu = base(i, v)
         if kind == "texture_speed":
             mu = mu + size * HYST_MU * z_sdq[i] * (v - 20.0) / 50.0
+        elif kind == "drainage":
+            mu = mu * drainage_factor(mpd[i], v, size)
         return mu
 
     noise = noise_mu if noise_mu is not None else (0.005 if source == "default" else 0.007)  # mu per DFT point
@@ -624,5 +646,6 @@ def describe_kinds() -> str:
             "texture_speed": f"+ {HYST_MU} z(macro_Sdq) (v - 20) / 50",
             "categorical_speed": f"- {POLISH_LOW_SPEED_MU} clip((60 - v) / 40, 0, 1) on aggregate == {POLISHED}",
             "texture_measure": f"level from micro Sq within {CONTACT_DEPTH_MM} mm of the tops (not in the table)",
+            "drainage": f"x max(0.05, 1 - {DRAIN_KAPPA} (v^2 - 400) / Sp^2), Sp = 14.2 + 89.7 profile_MPD",
         }
     )

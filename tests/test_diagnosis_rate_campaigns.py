@@ -59,6 +59,14 @@ def test_effect_kinds_change_friction_as_specified(source, chips_texture):
             warm = sites["temperature_c"].to_numpy() - rc.WLF["t_ref_c"]
             # a colder rubber behaves as at a higher slip speed: lower friction on a falling curve
             assert np.corrcoef(warm, d)[0, 1] > 0.8, np.corrcoef(warm, d)
+        elif kind == "drainage":
+            sp = 14.2 + 89.7 * tex["profile_MPD"].to_numpy()[:, None]
+            factor = np.maximum(0.05, 1 - rc.DRAIN_KAPPA * (v**2 - 400) / sp**2)
+            assert np.allclose(mu.to_numpy(), none.to_numpy() * factor)
+            assert np.all(factor[:, v <= 20] == 1) and np.all(np.diff(factor, axis=1) <= 0)
+            # shallow texture loses more at speed: the factor at the highest speed rises with MPD, strictly
+            order = np.argsort(tex["profile_MPD"].to_numpy())
+            assert np.all(np.diff(factor[order, -1]) >= 0) and factor[order[0], -1] < factor[order[-1], -1] - 0.05
         elif kind == "texture_measure":
             assert "hidden_micro_contact" not in tx.columns and "micro_Sq" in tx.columns
             ratio = mu.to_numpy() / none.to_numpy()

@@ -83,3 +83,25 @@ def test_merge_takes_the_named_causes_once_and_the_gains_where_measured():
     other = whole.assign(named="aadt (between-site main)")
     with pytest.raises(SystemExit, match="named causes differ in 5 campaigns"):
         merge_rates([screen, other])
+
+
+def test_drainage_is_named_by_mpd_at_either_level_or_by_the_texture_models_form_in_mpd():
+    from types import SimpleNamespace
+
+    from diagnosis_rates import hit
+
+    def cause(variable, source="texture", group=()):
+        return SimpleNamespace(variable=variable, source=source, group=group, label="")
+
+    truth = {"kind": "drainage", "variable": "profile_MPD", "source": "chips"}
+    assert hit(cause("profile_MPD"), truth)  # within sites x speed or between sites: the column itself
+    assert hit(cause("macro_Sq", group=("macro_Sq", "profile_MPD")), truth)  # a cluster holding it
+    curved = "texture_model[curved in log(profile_MPD) and log(micro_Sq)]"
+    assert hit(cause(curved, source="texture_model"), truth)
+    assert not hit(cause("texture_model[nonlinear in log(micro_Sq)]", source="texture_model"), truth)
+    assert not hit(cause("functional_form", source="model"), truth) and not hit(None, truth)
+    # the texture x speed kind counts every texture-model member; drainage only those in MPD
+    assert hit(
+        cause("texture_model[nonlinear in log(micro_Sq)]", source="texture_model"),
+        {**truth, "kind": "texture_speed", "variable": "macro_Sdq"},
+    )
