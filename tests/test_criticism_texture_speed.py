@@ -232,3 +232,36 @@ def test_mpd_x_speed_within_sites_goes_only_above_the_clusters_mpd_describes():
     ranked = [member, level, slope, within, *under]
     _mpd_above_its_clusters(ranked, "profile_MPD")
     assert [c.variable for c in ranked[:4]] == ["macro_Sdq", "profile_MPD", member.variable, "macro_Sdr"], ranked
+
+
+def test_mpd_x_speed_within_sites_goes_above_the_mpd_column_between_sites():
+    """The MPD column itself between sites (its level or its speed slope) is drainage's footprint, which MPD
+    describes: a significant within-site MPD x speed (the drainage hypothesis, whose extension recovers the squeeze
+    form's kappa within sites) goes above it, past nothing that MPD does not describe (the drainage rate campaigns,
+    default seed 3 and chips seed 5, 2026-12-07); without a within-site MPD x speed the column keeps its place."""
+    from dataclasses import replace
+
+    from skidsim.criticism.causes import Cause
+    from skidsim.criticism.ranking import rank_causes
+
+    def cause(variable, kind, cv_msr, level="between-site", **kw):
+        c = Cause(variable, level, kind, 0.01, 0.5, 0.0001, 0.005, True, source="texture", group=(variable,))
+        return replace(c, cv_msr=cv_msr, **kw)
+
+    cov = pd.DataFrame({"profile_MPD": np.linspace(0.5, 1.5, 6)}, index=[f"s{k}" for k in range(6)])
+    within = cause("profile_MPD", "x_speed", 1.0e-4, level="within-site", unit="profile_MPD", family="primary")
+    between = cause("profile_MPD", "main", 2.0e-4, unit="profile_MPD")
+    slope = cause("profile_MPD", "x_speed", 1.5e-4, unit="profile_MPD")
+    for column in (between, slope):
+        out = rank_causes([within, column], cov, "profile_MPD")
+        assert out[0] is within and out[1] is column, out
+        assert rank_causes([column], cov, "profile_MPD")[0] is column
+    # a cluster that MPD does not describe above the column stays above both
+    other = cause("macro_Sdq", "main", 7e-4, unit="cluster:macro_Sdq", group=("macro_Sdq", "profile_MPD"))
+    mpd_low = replace(between, cv_msr=0.1 * 7e-4)
+    out = rank_causes([within, other, mpd_low], cov, "profile_MPD")
+    assert [(c.variable, c.level) for c in out] == [
+        ("macro_Sdq", "between-site"),
+        ("profile_MPD", "within-site"),
+        ("profile_MPD", "between-site"),
+    ], out

@@ -39,9 +39,13 @@ def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
     (drainage makes the texture model misfit the level of shallow-texture sites: the macrotexture height cluster is
     significant between sites; MPD x speed names the mechanism); it moves above each such cluster whose predictive
     evidence (``cv_msr``) the MPD column's own between-site term of the same kind carries at least
-    :data:`DRAINAGE_FOOTPRINT_SHARE` of, and not past one it does not (:func:`_describes`): a cluster that another
-    member describes much better than MPD (the macro rms slope of a hysteresis that grows with speed, while the
-    exponential-decay law's misfit of another speed shape varies with MPD within sites) is not drainage's footprint.
+    :data:`DRAINAGE_FOOTPRINT_SHARE` of, and not past one it does not (:func:`_describes`). The MPD column itself
+    between sites (level or speed slope) is that footprint too, described by MPD by definition: the within-site test
+    goes above it (on the drainage rate campaigns its DrainageIFI recovers the squeeze form's kappa within sites
+    and gains at held-out speeds, while the between-site column's extensions gain nothing at held-out sites). A
+    cluster that another member describes much better than MPD (the macro rms slope of a hysteresis that grows with
+    speed, while the exponential-decay law's misfit of another speed shape varies with MPD within sites) is not
+    drainage's footprint.
     Between sites MPD x speed is itself a misfit of the texture model (the IFI speed constant the texture model
     misses), one description among the clusters, which keep their order by predictive evidence: on texture x speed
     campaigns the cluster's level term carries several times its ``cv_msr`` and predicts held-out sites, the
@@ -63,6 +67,8 @@ def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
         )
 
     def cluster_on_mpd(c: Cause) -> bool:
+        if within and c.variable == mpd_col and c.level == "between-site":
+            return True  # the MPD column itself between sites: drainage's footprint, described by MPD
         return within and mpd_col in c.group and c.unit is not None and str(c.unit).startswith("cluster:")
 
     above, barrier = [], -1
