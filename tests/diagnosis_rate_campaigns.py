@@ -64,8 +64,8 @@ others (they were 0.015 and 0.014 mu with the constants 0.03 and 0.08):
   ``x max(0.05, 1 - 0.3 (v^2 - 20^2) / Sp^2)`` with the IFI speed constant ``Sp = 14.2 + 89.7 profile_MPD`` (km/h,
   MPD mm): 1 at 20 km/h, a loss growing with speed and faster on shallow texture. The hidden variable is
   profile_MPD, which the table holds: the texture model's ``log(profile_MPD)`` term carries part of the level,
-  and the rest is a speed shape the exponential-decay law does not follow (sd of the site means 0.02-0.05 mu,
-  measured per campaign in ``truth["effect_sd_mu"]``).
+  and the rest is a speed shape the exponential-decay law does not follow (sd of the site means 0.01-0.04 mu,
+  median 0.020-0.025 over seeds 0-19 of the three sources; per campaign in ``truth["effect_sd_mu"]``).
 
 Units: speeds km/h, temperatures deg C, MPD and Sq mm, mu dimensionless.
 """

@@ -18,8 +18,9 @@ between-site term of the same kind must carry for a within-site MPD x speed (the
 above that cluster (:func:`_mpd_above_its_clusters`): drainage's footprint between sites is a function of MPD (the
 IFI speed constant Sp = 14.2 + 89.7 MPD), so where MPD is not the cluster's description the cluster is not that
 footprint. Measured (docs/model-criticism-measured.md, section 4): 0.81-1.06 on the residual-level drainage and
-squeeze campaigns, -0.44 to 0.63 on the chips texture x speed campaigns with Rado's curves (one level cluster
-0.91, below a speed-slope cluster at 0.38)."""
+squeeze campaigns, 0.52-1.20 on the drainage rate campaigns of the default and spectral sources, -0.44 to 0.63 on
+the chips texture x speed campaigns with Rado's curves (one level cluster 0.91, below a speed-slope cluster at
+0.38)."""
 
 
 def _describes(causes: list[Cause], mpd_col: str, cluster: Cause) -> bool:
