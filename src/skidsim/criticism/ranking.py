@@ -43,7 +43,7 @@ def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
     :data:`DRAINAGE_FOOTPRINT_SHARE` of, and not past one it does not (:func:`_describes`). The MPD column itself
     between sites (level or speed slope) is that footprint too, described by MPD by definition: the within-site test
     goes above it (on the drainage rate campaigns its DrainageIFI recovers the squeeze form's kappa within sites
-    and gains at held-out speeds, while the between-site column's extensions gain nothing at held-out sites). A
+    and gains at held-out speeds, while the between-site column's gain at held-out sites was established in none). A
     cluster that another member describes much better than MPD (the macro rms slope of a hysteresis that grows with
     speed, while the exponential-decay law's misfit of another speed shape varies with MPD within sites) is not
     drainage's footprint.
@@ -67,9 +67,9 @@ def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
             and c.variable in {f"texture_model[nonlinear in {a}]" for a in axes}
         )
 
-    def cluster_on_mpd(c: Cause) -> bool:
+    def footprint_on_mpd(c: Cause) -> bool:  # the MPD column itself between sites, or a texture cluster holding it
         if within and c.variable == mpd_col and c.level == "between-site":
-            return True  # the MPD column itself between sites: drainage's footprint, described by MPD
+            return True
         return within and mpd_col in c.group and c.unit is not None and str(c.unit).startswith("cluster:")
 
     above, barrier = [], -1
@@ -77,7 +77,7 @@ def _mpd_above_its_clusters(causes: list[Cause], mpd_col: str | None) -> None:
         c = causes[k]
         if c.significant and texture_model_on_mpd(c):
             above.append(k)
-        elif c.significant and cluster_on_mpd(c):
+        elif c.significant and footprint_on_mpd(c):
             if _describes(causes, mpd_col, c):
                 above.append(k)
             else:
